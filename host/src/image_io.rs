@@ -1,0 +1,45 @@
+//! Image output: PNG in 8-bit sRGB (clamped) and EXR in linear 32-bit float, chosen by extension.
+use anyhow::{anyhow, bail, Context, Result};
+use std::path::Path;
+
+/// The sRGB transfer function (IEC 61966-2-1) of a linear value, clamped to [0, 1].
+pub fn linear_to_srgb(x: f32) -> f32 {
+    let x = if x.is_finite() { x.clamp(0.0, 1.0) } else { 0.0 };
+    if x <= 0.003_130_8 {
+        12.92 * x
+    } else {
+        1.055 * x.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+pub fn write_image(path: &Path, width: u32, height: u32, rgb: &[[f32; 3]]) -> Result<()> {
+    if rgb.len() != (width * height) as usize {
+        bail!("{}: {} pixels for a {width}x{height} image", path.display(), rgb.len());
+    }
+    let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).unwrap_or_default();
+    match ext.as_str() {
+        "png" => {
+            let bytes: Vec<u8> = rgb.iter().flat_map(|p| p.map(|c| (linear_to_srgb(c) * 255.0 + 0.5) as u8)).collect();
+            image::save_buffer_with_format(path, &bytes, width, height, image::ExtendedColorType::Rgb8, image::ImageFormat::Png).with_context(|| format!("{}: cannot write PNG", path.display()))
+        }
+        "exr" => exr::prelude::write_rgb_file(path, width as usize, height as usize, |x, y| {
+            let p = rgb[y * width as usize + x];
+            (p[0], p[1], p[2])
+        })
+        .map_err(|e| anyhow!("{}: cannot write EXR: {e}", path.display())),
+        _ => bail!("{}: unknown image format (use .png or .exr)", path.display()),
+    }
+}
+
+/// Reads a linear RGB EXR (as written by `write_image`): width, height and pixels.
+pub fn read_exr(path: &Path) -> Result<(u32, u32, Vec<[f32; 3]>)> {
+    use exr::prelude::*;
+    let image = read_first_rgba_layer_from_file(
+        path,
+        |resolution, _| (resolution.width(), vec![[0f32; 3]; resolution.width() * resolution.height()]),
+        |(w, px), pos, (r, g, b, _a): (f32, f32, f32, f32)| px[pos.y() * *w + pos.x()] = [r, g, b],
+    )
+    .map_err(|e| anyhow!("{}: cannot read EXR: {e}", path.display()))?;
+    let size = image.layer_data.size;
+    Ok((size.width() as u32, size.height() as u32, image.layer_data.channel_data.pixels.1))
+}

@@ -1,0 +1,236 @@
+//! The `kdtrace` command line: `render`, `verify`, `adapters`.
+use anyhow::Result;
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use indicatif::{ProgressBar, ProgressStyle};
+use kdtrace::camera::Camera;
+use kdtrace::render::{Compiled, RenderSettings, Rendered};
+use kdtrace::{cpu, gpu, image_io, kdbuild, verify};
+use serde_json::json;
+use shared::glam::Vec3;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Instant;
+
+#[derive(Parser)]
+#[command(name = "kdtrace", version, about = "A path tracer whose CPU reference and GPU kernel run the same Rust code")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render an OBJ scene to PNG (sRGB) or EXR (linear).
+    Render(RenderArgs),
+    /// Render on the CPU and the GPU with the same seed and report how well they agree.
+    Verify(VerifyArgs),
+    /// List the GPU adapters wgpu can use.
+    Adapters,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum Device {
+    Cpu,
+    Gpu,
+}
+
+#[derive(Args, Clone)]
+struct ImageArgs {
+    /// Samples per pixel.
+    #[arg(long, default_value_t = 64)]
+    spp: u32,
+    #[arg(long, default_value_t = 512)]
+    width: u32,
+    #[arg(long, default_value_t = 512)]
+    height: u32,
+    /// Indirect bounces (0 = direct light only).
+    #[arg(long, default_value_t = 6)]
+    bounces: u32,
+    #[arg(long, default_value_t = 0)]
+    seed: u32,
+    /// Camera position x,y,z (default: frame the scene's box from +Z).
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    eye: Option<Vec3>,
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    target: Option<Vec3>,
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    up: Option<Vec3>,
+    /// Vertical field of view in degrees.
+    #[arg(long)]
+    fov: Option<f32>,
+    /// GPU adapter: the first whose name contains this (default: the first adapter).
+    #[arg(long)]
+    adapter: Option<String>,
+    /// Print one JSON line to stdout instead of a progress bar.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Args)]
+struct RenderArgs {
+    scene: PathBuf,
+    #[arg(long)]
+    out: PathBuf,
+    #[arg(long, value_enum, default_value_t = Device::Cpu)]
+    device: Device,
+    #[command(flatten)]
+    image: ImageArgs,
+}
+
+#[derive(Args)]
+struct VerifyArgs {
+    scene: PathBuf,
+    #[command(flatten)]
+    image: ImageArgs,
+}
+
+fn parse_vec3(s: &str) -> Result<Vec3, String> {
+    let parts: Vec<&str> = s.split(',').collect();
+    if parts.len() != 3 {
+        return Err(format!("expected x,y,z, got {s:?}"));
+    }
+    let mut v = [0.0f32; 3];
+    for (slot, p) in v.iter_mut().zip(parts) {
+        *slot = p.trim().parse().map_err(|_| format!("{p:?} is not a number"))?;
+        if !slot.is_finite() {
+            return Err(format!("{p:?} is not finite"));
+        }
+    }
+    Ok(Vec3::from(v))
+}
+
+fn settings(a: &ImageArgs, c: &Compiled) -> Result<RenderSettings> {
+    let aspect = a.width.max(1) as f32 / a.height.max(1) as f32;
+    let mut camera = Camera::frame_bounds(c.tree.bounds_min, c.tree.bounds_max, aspect);
+    if let Some(e) = a.eye {
+        camera.eye = e;
+    }
+    if let Some(t) = a.target {
+        camera.target = t;
+    }
+    if let Some(u) = a.up {
+        camera.up = u;
+    }
+    if let Some(f) = a.fov {
+        camera.fov_deg = f;
+    }
+    let s = RenderSettings {
+        width: a.width,
+        height: a.height,
+        spp: a.spp,
+        max_bounces: a.bounces,
+        seed: a.seed,
+        rr_start: 5,
+        environment: Vec3::ZERO,
+        camera,
+    };
+    s.check()?;
+    camera.basis(aspect)?;
+    Ok(s)
+}
+
+fn progress_bar(quiet: bool, label: &str) -> ProgressBar {
+    if quiet {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::new(1);
+    bar.set_style(ProgressStyle::with_template("{msg} [{bar:40}] {percent}% {elapsed_precise} eta {eta}").unwrap().progress_chars("=> "));
+    bar.set_message(label.to_string());
+    bar
+}
+
+fn run_device(device: Device, c: &Compiled, s: &RenderSettings, a: &ImageArgs) -> Result<(Rendered, String, f64)> {
+    let bar = progress_bar(a.json, if device == Device::Cpu { "cpu" } else { "gpu" });
+    let report = |done: u64, total: u64| {
+        bar.set_length(total);
+        bar.set_position(done);
+    };
+    let result = match device {
+        Device::Cpu => {
+            let t = Instant::now();
+            let r = cpu::render(c, s, &report)?;
+            (r, format!("cpu ({} threads)", rayon::current_num_threads()), t.elapsed().as_secs_f64())
+        }
+        Device::Gpu => {
+            let g = gpu::Gpu::open(a.adapter.as_deref())?;
+            let t = Instant::now();
+            let r = g.render(c, s, &report)?;
+            (r, g.adapter.name.clone(), t.elapsed().as_secs_f64())
+        }
+    };
+    bar.finish_and_clear();
+    Ok(result)
+}
+
+fn render(r: RenderArgs) -> Result<ExitCode> {
+    let loaded = kdtrace::load(&r.scene, kdbuild::BuildSettings::default())?;
+    let c = &loaded.compiled;
+    let s = settings(&r.image, c)?;
+    let (img, adapter, render_s) = run_device(r.device, c, &s, &r.image)?;
+    image_io::write_image(&r.out, s.width, s.height, &img.mean())?;
+    let samples = s.width as f64 * s.height as f64 * s.spp as f64;
+    if r.image.json {
+        let line = json!({
+            "scene": r.scene, "out": r.out,
+            "device": if r.device == Device::Cpu { "cpu" } else { "gpu" }, "adapter": adapter,
+            "triangles": c.scene.triangles.len(), "lights": c.scene.lights.len(),
+            "dropped_degenerate": c.scene.dropped_degenerate,
+            "nodes": c.tree.nodes.len(), "tree_depth": c.tree.depth,
+            "spp": s.spp, "width": s.width, "height": s.height, "bounces": s.max_bounces, "seed": s.seed,
+            "load_s": loaded.load_s, "build_s": loaded.build_s, "render_s": render_s,
+            "samples_per_s": samples / render_s, "zeroed_samples": img.zeroed_samples(),
+        });
+        println!("{line}");
+    } else {
+        eprintln!(
+            "{}: {} triangles, {}x{} at {} spp on {adapter}: load {:.3} s, build {:.3} s, render {:.3} s ({:.2} Msamples/s)",
+            r.out.display(), c.scene.triangles.len(), s.width, s.height, s.spp, loaded.load_s, loaded.build_s, render_s, samples / render_s / 1e6
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn verify(v: VerifyArgs) -> Result<ExitCode> {
+    let loaded = kdtrace::load(&v.scene, kdbuild::BuildSettings::default())?;
+    let c = &loaded.compiled;
+    let s = settings(&v.image, c)?;
+    let (cpu_img, cpu_name, cpu_s) = run_device(Device::Cpu, c, &s, &v.image)?;
+    let (gpu_img, gpu_name, gpu_s) = run_device(Device::Gpu, c, &s, &v.image)?;
+    let a = verify::compare(&cpu_img, &gpu_img);
+    if v.image.json {
+        println!("{}", json!({ "scene": v.scene, "cpu": cpu_name, "adapter": gpu_name, "cpu_render_s": cpu_s, "gpu_render_s": gpu_s, "spp": s.spp, "width": s.width, "height": s.height, "agreement": a }));
+    } else {
+        println!("scene {} ({}x{}, {} spp, seed {}): CPU {cpu_name} {cpu_s:.3} s, GPU {gpu_name} {gpu_s:.3} s", v.scene.display(), s.width, s.height, s.spp, s.seed);
+        println!(
+            "pixels within {:e} relative: {}/{} ({:.4}%), bit-identical {}; relMSE {:.3e}; max relative difference {:.3e}",
+            verify::REL_TOLERANCE, a.pixels_within, a.pixels, 100.0 * a.pixel_share, a.bitwise_identical_pixels, a.relmse, a.max_rel_diff
+        );
+        println!("primary hits identical: {}/{} ({:.4}%)", a.primary_matches, a.pixels, 100.0 * a.primary_share);
+        if let Some(d) = &a.first_divergent {
+            println!("first divergent pixel ({}, {}): cpu {:?} gpu {:?}", d.x, d.y, d.cpu, d.gpu);
+        }
+        println!("{}", if a.pass { "AGREE" } else { "DISAGREE" });
+    }
+    Ok(if a.pass { ExitCode::SUCCESS } else { ExitCode::from(1) })
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Render(r) => render(r),
+        Command::Verify(v) => verify(v),
+        Command::Adapters => {
+            for a in gpu::adapters() {
+                println!("{} ({:?}, {:?}, driver {} {})", a.name, a.device_type, a.backend, a.driver, a.driver_info);
+            }
+            Ok(ExitCode::SUCCESS)
+        }
+    };
+    match result {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::from(2)
+        }
+    }
+}

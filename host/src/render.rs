@@ -1,0 +1,120 @@
+//! What both renderers share on the host: settings, the compiled scene, render parameters and
+//! the accumulated result.
+use crate::camera::Camera;
+use crate::kdbuild::KdTree;
+use crate::scene::Scene;
+use anyhow::{bail, Result};
+use shared::glam::{Vec3, Vec4};
+use shared::layout::{Light, RenderParams};
+use shared::scene::SceneView;
+
+#[derive(Clone, Copy, Debug)]
+pub struct RenderSettings {
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    /// Indirect bounces; 0 = direct light only.
+    pub max_bounces: u32,
+    pub seed: u32,
+    /// Bounce from which Russian roulette may end a path (Mitsuba's `rr_depth`).
+    pub rr_start: u32,
+    pub environment: Vec3,
+    pub camera: Camera,
+}
+
+/// Largest image side and sample count accepted: beyond these, buffers or counters overflow.
+pub const MAX_SIDE: u32 = 16384;
+pub const MAX_SPP: u32 = 1 << 20;
+
+impl RenderSettings {
+    pub fn check(&self) -> Result<()> {
+        if self.width == 0 || self.height == 0 || self.width > MAX_SIDE || self.height > MAX_SIDE {
+            bail!("resolution {}x{} must be within 1..={MAX_SIDE} on each side", self.width, self.height);
+        }
+        if self.spp == 0 || self.spp > MAX_SPP {
+            bail!("spp {} must be within 1..={MAX_SPP}", self.spp);
+        }
+        if self.max_bounces > 1024 {
+            bail!("bounces {} must be at most 1024", self.max_bounces);
+        }
+        Ok(())
+    }
+
+    pub fn aspect(&self) -> f32 {
+        self.width as f32 / self.height as f32
+    }
+}
+
+/// A scene ready to render: geometry, materials, lights and its k-d tree.
+pub struct Compiled {
+    pub scene: Scene,
+    pub tree: KdTree,
+    /// The light table padded to at least one entry (GPU buffers cannot be empty).
+    pub lights: Vec<Light>,
+}
+
+impl Compiled {
+    pub fn new(scene: Scene, tree: KdTree) -> Self {
+        let mut lights = scene.lights.clone();
+        if lights.is_empty() {
+            lights.push(Light::default());
+        }
+        Self { scene, tree, lights }
+    }
+
+    pub fn params(&self, s: &RenderSettings, sample_start: u32, sample_count: u32) -> Result<RenderParams> {
+        let (right, up, forward) = s.camera.basis(s.aspect())?;
+        Ok(RenderParams {
+            eye: s.camera.eye.extend(0.0),
+            right: right.extend(0.0),
+            up: up.extend(0.0),
+            forward: forward.extend(0.0),
+            bounds_min: self.tree.bounds_min.extend(0.0),
+            bounds_max: self.tree.bounds_max.extend(0.0),
+            environment: s.environment.extend(0.0),
+            width: s.width,
+            height: s.height,
+            sample_start,
+            sample_count,
+            seed: s.seed,
+            max_bounces: s.max_bounces,
+            rr_start: s.rr_start,
+            light_count: self.scene.lights.len() as u32,
+            inv_width: 1.0 / s.width as f32,
+            inv_height: 1.0 / s.height as f32,
+            _pad0: 0,
+            _pad1: 0,
+        })
+    }
+
+    pub fn view<'a>(&'a self, params: &RenderParams) -> SceneView<'a> {
+        SceneView::new(params, &self.tree.nodes, &self.tree.indices, &self.scene.triangles, &self.scene.info, &self.scene.materials, &self.lights)
+    }
+}
+
+/// An accumulated image: per pixel the radiance sum in `xyz` and the count of zeroed
+/// (non-finite or negative) samples in `w`, plus the triangle hit by sample 0's camera ray.
+#[derive(Clone, Debug)]
+pub struct Rendered {
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    pub sum: Vec<Vec4>,
+    pub primary: Vec<u32>,
+}
+
+impl Rendered {
+    /// Mean radiance per pixel, linear RGB.
+    pub fn mean(&self) -> Vec<[f32; 3]> {
+        let k = 1.0 / self.spp as f32;
+        self.sum.iter().map(|s| [s.x * k, s.y * k, s.z * k]).collect()
+    }
+
+    /// Samples that were non-finite or negative and were zeroed.
+    pub fn zeroed_samples(&self) -> u64 {
+        self.sum.iter().map(|s| s.w as u64).sum()
+    }
+}
+
+/// Progress callback: (samples done, samples in all) over the whole image.
+pub type Progress<'a> = &'a (dyn Fn(u64, u64) + Sync);

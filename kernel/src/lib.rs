@@ -1,0 +1,35 @@
+//! rust-gpu entry points. Each one only unpacks its invocation id and buffers and calls `shared`.
+#![no_std]
+
+use shared::glam::{UVec3, Vec4};
+use shared::integrator::render_pixel;
+use shared::layout::{KdNode, Light, Material, RenderParams, Triangle, TriangleInfo};
+use shared::scene::SceneView;
+use spirv_std::spirv;
+
+/// One invocation per pixel: adds this pass's samples to the pixel's running sum.
+#[spirv(compute(threads(8, 8, 1)))]
+#[allow(clippy::too_many_arguments)]
+pub fn render_pass(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(uniform, descriptor_set = 0, binding = 0)] params: &RenderParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] nodes: &[KdNode],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] indices: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] triangles: &[Triangle],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] info: &[TriangleInfo],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] materials: &[Material],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] lights: &[Light],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] accum: &mut [Vec4],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] primary: &mut [u32],
+) {
+    if (id.x >= params.width) | (id.y >= params.height) {
+        return;
+    }
+    let scene = SceneView::new(params, nodes, indices, triangles, info, materials, lights);
+    let pixel = (id.y * params.width + id.x) as usize;
+    let pass = render_pixel(&scene, params, id.x, id.y, accum[pixel]);
+    accum[pixel] = pass.sum;
+    if params.sample_start == 0 {
+        primary[pixel] = pass.primary;
+    }
+}

@@ -1,0 +1,153 @@
+//! Unidirectional path tracing with next-event estimation to emissive triangles, combined with
+//! BSDF sampling by multiple importance sampling (Veach & Guibas 1995, power heuristic),
+//! Russian roulette and a bounce limit (pbrt-v4 §13.4 `PathIntegrator`).
+//!
+//! Bounce counting: `max_bounces` counts indirect bounces, so 0 renders direct light only (a path
+//! of at most two segments after the camera: Mitsuba's `max_depth = max_bounces + 2`).
+use crate::camera::primary_direction;
+use crate::glam::{Vec3, Vec4};
+use crate::kdtree::{intersect, occluded};
+use crate::layout::{RenderParams, NO_HIT, NO_LIGHT};
+use crate::material::{emitted, eval, sample as sample_bsdf};
+use crate::numerics::{offset_ray_origin, sanitize_radiance};
+use crate::rng::Sampler;
+use crate::sampling::{power_heuristic, select_light, uniform_triangle};
+use crate::scene::SceneView;
+use crate::triangle::{geometric_normal, hit_point, TriangleHit};
+use crate::vecmath::{dot, length_squared, max_component, normalize, xyz};
+#[allow(unused_imports)]
+use spirv_std::num_traits::Float;
+
+/// Shadow rays stop this fraction short of the light (pbrt's `ShadowEpsilon`).
+const SHADOW_EPSILON: f32 = 1e-4;
+/// Russian roulette never keeps a path with probability above this.
+const RR_MAX_SURVIVAL: f32 = 0.95;
+
+/// One camera sample's radiance and the triangle its camera ray hit first.
+#[derive(Clone, Copy)]
+pub struct PathSample {
+    pub radiance: Vec3,
+    pub primary: u32,
+}
+
+/// Traces sample `sample` of pixel (px, py).
+pub fn trace_sample(scene: &SceneView, p: &RenderParams, px: u32, py: u32, sample: u32) -> PathSample {
+    let mut rng = Sampler::new(py * p.width + px, sample, p.seed);
+    let jx = rng.next_1d();
+    let jy = rng.next_1d();
+    let mut dir = primary_direction(p, px as f32 + jx, py as f32 + jy);
+    let mut origin = xyz(p.eye);
+    let mut beta = Vec3::ONE;
+    let mut radiance = Vec3::ZERO;
+    // Solid-angle pdf of the BSDF sample that produced `dir`; unused for camera rays.
+    let mut bsdf_pdf = 0.0f32;
+    let mut primary = NO_HIT;
+    let mut bounce = 0u32;
+    loop {
+        let hit = intersect(scene, origin, dir, f32::MAX);
+        if bounce == 0 {
+            primary = hit.triangle;
+        }
+        if !hit.is_hit() {
+            radiance += beta * xyz(p.environment);
+            break;
+        }
+        let tri = &scene.triangles[hit.triangle as usize];
+        let info = scene.info[hit.triangle as usize];
+        let mat = &scene.materials[info.material as usize];
+        let ng = geometric_normal(tri);
+        let n = normalize(ng);
+        let pos = hit_point(tri, &TriangleHit { t: hit.t, u: hit.u, v: hit.v, w: hit.w });
+
+        let le = emitted(mat, ng, dir);
+        if (le.x > 0.0) | (le.y > 0.0) | (le.z > 0.0) {
+            let mut weight = 1.0;
+            if (bounce > 0) & (info.light != NO_LIGHT) {
+                let light = scene.lights[info.light as usize];
+                let dist2 = hit.t * hit.t * length_squared(dir);
+                let cos_l = dot(n, normalize(dir)).abs();
+                let light_pdf = light.pmf * dist2 / (cos_l * light.area);
+                weight = power_heuristic(bsdf_pdf, light_pdf);
+            }
+            radiance += beta * le * weight;
+        }
+        if bounce == p.max_bounces + 1 {
+            break;
+        }
+
+        // Shade on the side the ray arrived from: diffuse is two-sided.
+        let ns = if dot(ng, dir) < 0.0 { n } else { -n };
+        let spawn = offset_ray_origin(pos, ns);
+
+        if scene.light_count > 0 {
+            let u_select = rng.next_1d();
+            let u1 = rng.next_1d();
+            let u2 = rng.next_1d();
+            let light = scene.lights[select_light(scene.lights, scene.light_count, u_select) as usize];
+            let ltri = &scene.triangles[light.triangle as usize];
+            let (b0, b1, b2) = uniform_triangle(u1, u2);
+            let q = xyz(ltri.v0) * b0 + xyz(ltri.v1) * b1 + xyz(ltri.v2) * b2;
+            let nl = normalize(geometric_normal(ltri));
+            let to_light = q - pos;
+            let dist2 = length_squared(to_light);
+            let wi = to_light * (1.0 / dist2.sqrt());
+            let cos_l = -dot(nl, wi);
+            let (f, pdf_bsdf) = eval(mat, ns, wi);
+            if (cos_l > 0.0) & (pdf_bsdf > 0.0) & (dist2 > 0.0) {
+                let light_pdf = light.pmf * dist2 / (cos_l * light.area);
+                let target = offset_ray_origin(q, nl);
+                if !occluded(scene, spawn, target - spawn, 1.0 - SHADOW_EPSILON) {
+                    let lmat = &scene.materials[scene.info[light.triangle as usize].material as usize];
+                    let weight = power_heuristic(light_pdf, pdf_bsdf);
+                    radiance += beta * f * xyz(lmat.emission) * (dot(ns, wi) * weight / light_pdf);
+                }
+            }
+        }
+
+        let bs = sample_bsdf(mat, ns, rng.next_1d(), rng.next_1d());
+        if bs.pdf <= 0.0 {
+            break;
+        }
+        beta *= bs.weight;
+        bsdf_pdf = bs.pdf;
+        bounce += 1;
+        if bounce >= p.rr_start {
+            let survive = max_component(beta).min(RR_MAX_SURVIVAL);
+            if rng.next_1d() >= survive {
+                break;
+            }
+            beta = beta / survive;
+        }
+        origin = spawn;
+        dir = bs.wi;
+    }
+    PathSample { radiance, primary }
+}
+
+/// A pixel's running sum after one pass: `xyz` radiance, `w` the number of samples that were
+/// non-finite or negative and were zeroed.
+#[derive(Clone, Copy)]
+pub struct PixelPass {
+    pub sum: Vec4,
+    /// The primary hit of sample 0 when this pass contains it, else `NO_HIT`.
+    pub primary: u32,
+}
+
+/// Adds samples `[sample_start, sample_start + sample_count)` of pixel (x, y) to `sum`, in sample
+/// order, so every device sums the same numbers in the same order.
+pub fn render_pixel(scene: &SceneView, p: &RenderParams, x: u32, y: u32, sum: Vec4) -> PixelPass {
+    let mut sum = sum;
+    let mut primary = NO_HIT;
+    let mut s = p.sample_start;
+    let end = p.sample_start + p.sample_count;
+    while s < end {
+        let r = trace_sample(scene, p, x, y, s);
+        if s == 0 {
+            primary = r.primary;
+        }
+        let (l, bad) = sanitize_radiance(r.radiance);
+        sum += Vec4::new(l.x, l.y, l.z, if bad { 1.0 } else { 0.0 });
+        s += 1;
+    }
+    PixelPass { sum, primary }
+}

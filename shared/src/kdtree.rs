@@ -1,0 +1,229 @@
+//! k-d tree traversal: the node layout is in `layout::KdNode`, the builders live in the host.
+//!
+//! A stack-based front-to-back traversal (pbrt-v3 §4.4.3, Wald's thesis §7.2) with explicit
+//! handling of axis-parallel rays: when a direction component is zero the ray never crosses that
+//! split plane, so no `(split − o)·(1/0)` is ever formed (it would be `0·∞ = NaN` for a ray lying
+//! in the plane). A ray lying exactly in a split plane visits both children, since triangles in
+//! the plane may have been placed on either side.
+//!
+//! Termination is by culling, not by leaf exit: a node popped from the stack is skipped only when
+//! its entry distance, lowered by `T_SLACK`, exceeds the closest hit so far. Together with a
+//! conservative triangle placement by the builder this returns exactly the hit that testing every
+//! triangle returns (`intersect_brute_force`), bit for bit, because both call the same
+//! `RayShear::intersect`.
+use crate::glam::Vec3;
+use crate::layout::{KD_MAX_DEPTH, NO_HIT};
+use crate::numerics::{gamma, is_finite3, T_SLACK};
+use crate::scene::SceneView;
+use crate::triangle::RayShear;
+use crate::vecmath::axis;
+
+const STACK_SIZE: usize = KD_MAX_DEPTH as usize + 1;
+
+/// The closest hit of a ray, or `triangle == NO_HIT`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    pub t: f32,
+    pub triangle: u32,
+    /// Unnormalised barycentric weights of v0, v1, v2.
+    pub u: f32,
+    pub v: f32,
+    pub w: f32,
+}
+
+impl Hit {
+    #[inline]
+    pub fn miss(t_max: f32) -> Self {
+        Self { t: t_max, triangle: NO_HIT, u: 0.0, v: 0.0, w: 0.0 }
+    }
+    #[inline]
+    pub fn is_hit(&self) -> bool {
+        self.triangle != NO_HIT
+    }
+}
+
+#[derive(Clone, Copy)]
+struct StackEntry {
+    node: u32,
+    t_min: f32,
+    t_max: f32,
+}
+
+/// Components below the smallest normal float become exactly zero: a GPU may flush denormals
+/// while the CPU keeps them, and the traversal treats zero components as parallel to a plane.
+#[inline]
+pub fn flush_denormals(d: Vec3) -> Vec3 {
+    Vec3::new(flush(d.x), flush(d.y), flush(d.z))
+}
+
+#[inline]
+fn flush(x: f32) -> f32 {
+    if x.abs() < f32::MIN_POSITIVE {
+        0.0
+    } else {
+        x
+    }
+}
+
+#[inline]
+fn recip(x: f32) -> f32 {
+    if x == 0.0 {
+        0.0
+    } else {
+        1.0 / x
+    }
+}
+
+/// Per-axis reciprocal direction; zero components get 0 and are never used (see module docs).
+#[inline]
+fn safe_reciprocal(d: Vec3) -> Vec3 {
+    Vec3::new(recip(d.x), recip(d.y), recip(d.z))
+}
+
+/// Slab test against the scene box; `None` when the ray misses it within (t_min, t_max).
+/// The exit distance is widened by 2γ(3) (pbrt-v4 `Bounds3::IntersectP`) so a triangle lying on
+/// the box face is not lost to rounding.
+#[inline]
+pub fn clip_to_bounds(lo: Vec3, hi: Vec3, origin: Vec3, dir: Vec3, inv: Vec3, t_min: f32, t_max: f32) -> Option<(f32, f32)> {
+    let mut t0 = t_min;
+    let mut t1 = t_max;
+    let mut a = 0;
+    while a < 3 {
+        let o = axis(origin, a);
+        let d = axis(dir, a);
+        let (l, h) = (axis(lo, a), axis(hi, a));
+        if d == 0.0 {
+            if (o < l) | (o > h) {
+                return None;
+            }
+        } else {
+            let i = axis(inv, a);
+            let mut near = (l - o) * i;
+            let mut far = (h - o) * i;
+            if near > far {
+                core::mem::swap(&mut near, &mut far);
+            }
+            far *= 1.0 + 2.0 * gamma(3);
+            t0 = if near > t0 { near } else { t0 };
+            t1 = if far < t1 { far } else { t1 };
+            if t0 > t1 {
+                return None;
+            }
+        }
+        a += 1;
+    }
+    Some((t0, t1))
+}
+
+/// The closest hit with t in (0, t_max).
+#[inline]
+pub fn intersect(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32) -> Hit {
+    traverse(scene, origin, dir, t_max, false)
+}
+
+/// Whether anything lies along the ray with t in (0, t_max).
+#[inline]
+pub fn occluded(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
+    traverse(scene, origin, dir, t_max, true).is_hit()
+}
+
+fn traverse(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32, any_hit: bool) -> Hit {
+    let dir = flush_denormals(dir);
+    let mut best = Hit::miss(t_max);
+    let zero_dir = (dir.x == 0.0) & (dir.y == 0.0) & (dir.z == 0.0);
+    if !is_finite3(origin) | !is_finite3(dir) | zero_dir | (scene.nodes.is_empty()) {
+        return best;
+    }
+    let inv = safe_reciprocal(dir);
+    let (mut t0, mut t1) = match clip_to_bounds(scene.bounds_min, scene.bounds_max, origin, dir, inv, 0.0, t_max) {
+        Some(range) => range,
+        None => return best,
+    };
+    let shear = RayShear::new(origin, dir);
+    let mut stack = [StackEntry { node: 0, t_min: 0.0, t_max: 0.0 }; STACK_SIZE];
+    let mut sp = 0usize;
+    let mut node = 0u32;
+    loop {
+        let n = scene.nodes[node as usize];
+        if !n.is_leaf() {
+            let ax = n.axis();
+            let split = n.split();
+            let o = axis(origin, ax);
+            let d = axis(dir, ax);
+            let below_first = (o < split) | ((o == split) & (d <= 0.0));
+            let (first, second) = if below_first { (node + 1, n.above_child()) } else { (n.above_child(), node + 1) };
+            if d == 0.0 {
+                // Parallel to the plane: stay on the origin's side, or visit both when in it.
+                if (o == split) & (sp < STACK_SIZE) {
+                    stack[sp] = StackEntry { node: second, t_min: t0, t_max: t1 };
+                    sp += 1;
+                }
+                node = first;
+                continue;
+            }
+            let t_split = (split - o) * axis(inv, ax);
+            if (t_split > t1 * (1.0 + T_SLACK)) | (t_split <= 0.0) {
+                node = first;
+            } else if t_split < t0 * (1.0 - T_SLACK) {
+                node = second;
+            } else {
+                // The builder bounds depth by KD_MAX_DEPTH, so the stack cannot overflow on a
+                // validated tree; the guard only keeps a corrupt tree from writing out of bounds.
+                if sp < STACK_SIZE {
+                    stack[sp] = StackEntry { node: second, t_min: if t_split > t0 { t_split } else { t0 }, t_max: t1 };
+                    sp += 1;
+                }
+                node = first;
+                t1 = if t_split < t1 { t_split } else { t1 };
+            }
+            continue;
+        }
+        let start = n.first_index();
+        let count = n.count();
+        let mut i = 0;
+        while i < count {
+            let id = scene.indices[(start + i) as usize];
+            if let Some(h) = shear.intersect(&scene.triangles[id as usize], 0.0, best.t) {
+                best = Hit { t: h.t, triangle: id, u: h.u, v: h.v, w: h.w };
+                if any_hit {
+                    return best;
+                }
+            }
+            i += 1;
+        }
+        // Pop the nearest node that may still hold a closer hit.
+        let mut found = false;
+        while (sp > 0) & !found {
+            sp -= 1;
+            let e = stack[sp];
+            if e.t_min * (1.0 - T_SLACK) <= best.t {
+                node = e.node;
+                t0 = e.t_min;
+                t1 = e.t_max;
+                found = true;
+            }
+        }
+        if !found {
+            return best;
+        }
+    }
+}
+
+/// Tests every triangle: the reference the tree must reproduce exactly.
+pub fn intersect_brute_force(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32) -> Hit {
+    let dir = flush_denormals(dir);
+    let mut best = Hit::miss(t_max);
+    let zero_dir = (dir.x == 0.0) & (dir.y == 0.0) & (dir.z == 0.0);
+    if !is_finite3(origin) | !is_finite3(dir) | zero_dir {
+        return best;
+    }
+    let shear = RayShear::new(origin, dir);
+    let mut id = 0;
+    while id < scene.triangles.len() {
+        if let Some(h) = shear.intersect(&scene.triangles[id], 0.0, best.t) {
+            best = Hit { t: h.t, triangle: id as u32, u: h.u, v: h.v, w: h.w };
+        }
+        id += 1;
+    }
+    best
+}

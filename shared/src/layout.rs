@@ -1,0 +1,150 @@
+//! Buffer layouts shared by the host, the CPU renderer and the GPU kernel.
+//!
+//! Every struct is `#[repr(C)]`, made of `u32`, `f32` and `Vec4` only (no `bool`, no `Vec3`: a
+//! 12-byte stride is not a valid storage-buffer array stride), and `Pod` on the host so it uploads
+//! with `bytemuck::cast_slice`. Enums travel as a tag plus an index, never as pointers.
+use crate::glam::Vec4;
+
+/// A triangle's three vertices in world space; `w` is unused (kept 0).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(not(target_arch = "spirv"), derive(bytemuck::Pod, bytemuck::Zeroable))]
+pub struct Triangle {
+    pub v0: Vec4,
+    pub v1: Vec4,
+    pub v2: Vec4,
+}
+
+/// Marks a triangle that is not a light.
+pub const NO_LIGHT: u32 = u32::MAX;
+/// Marks a ray that hit nothing.
+pub const NO_HIT: u32 = u32::MAX;
+
+/// What a triangle is made of and, if it emits, which light it is.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(not(target_arch = "spirv"), derive(bytemuck::Pod, bytemuck::Zeroable))]
+pub struct TriangleInfo {
+    pub material: u32,
+    /// Index into the light table, or `NO_LIGHT`.
+    pub light: u32,
+}
+
+/// Material kinds (the tag of the tag + index dispatch). Only Lambertian exists yet; the layout
+/// reserves `params` for the physically based materials to come.
+pub const MATERIAL_DIFFUSE: u32 = 0;
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(not(target_arch = "spirv"), derive(bytemuck::Pod, bytemuck::Zeroable))]
+pub struct Material {
+    pub kind: u32,
+    pub _pad: [u32; 3],
+    /// Diffuse albedo (MTL `Kd`), linear RGB in `xyz`.
+    pub albedo: Vec4,
+    /// Emitted radiance from the front (counter-clockwise) side (MTL `Ke`), linear RGB in `xyz`.
+    pub emission: Vec4,
+    /// Reserved for roughness, IOR and the like.
+    pub params: Vec4,
+}
+
+/// One emissive triangle in the light-selection table.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(not(target_arch = "spirv"), derive(bytemuck::Pod, bytemuck::Zeroable))]
+pub struct Light {
+    pub triangle: u32,
+    /// Probability of picking this light.
+    pub pmf: f32,
+    /// Sum of `pmf` over this light and all before it; the last entry is 1.
+    pub cdf: f32,
+    pub area: f32,
+}
+
+/// A k-d tree node in 8 bytes (pbrt-v3 §4.4 layout).
+///
+/// Interior: `a` is the split position's f32 bits, `b` is `axis | above_child << 2`; the below
+/// child is the next node in the array. Leaf: `a` is the first index into the triangle index
+/// list, `b` is `3 | count << 2`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(not(target_arch = "spirv"), derive(bytemuck::Pod, bytemuck::Zeroable))]
+pub struct KdNode {
+    pub a: u32,
+    pub b: u32,
+}
+
+/// Deepest tree the traversal stack can hold; builders must not exceed it.
+pub const KD_MAX_DEPTH: u32 = 40;
+
+impl KdNode {
+    #[inline]
+    pub fn interior(axis: u32, split: f32, above_child: u32) -> Self {
+        Self { a: split.to_bits(), b: axis | (above_child << 2) }
+    }
+    #[inline]
+    pub fn leaf(first_index: u32, count: u32) -> Self {
+        Self { a: first_index, b: 3 | (count << 2) }
+    }
+    #[inline]
+    pub fn is_leaf(self) -> bool {
+        (self.b & 3) == 3
+    }
+    #[inline]
+    pub fn axis(self) -> u32 {
+        self.b & 3
+    }
+    #[inline]
+    pub fn split(self) -> f32 {
+        f32::from_bits(self.a)
+    }
+    #[inline]
+    pub fn above_child(self) -> u32 {
+        self.b >> 2
+    }
+    #[inline]
+    pub fn first_index(self) -> u32 {
+        self.a
+    }
+    #[inline]
+    pub fn count(self) -> u32 {
+        self.b >> 2
+    }
+}
+
+/// Everything a render pass needs besides the scene buffers. Uniform-buffer friendly: Vec4s
+/// first, then u32/f32 in groups of four.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(not(target_arch = "spirv"), derive(bytemuck::Pod, bytemuck::Zeroable))]
+pub struct RenderParams {
+    /// Camera position.
+    pub eye: Vec4,
+    /// Right vector scaled by tan(fov/2)·aspect.
+    pub right: Vec4,
+    /// Up vector scaled by tan(fov/2).
+    pub up: Vec4,
+    /// Unit view direction.
+    pub forward: Vec4,
+    /// Scene bounds (the k-d root's box).
+    pub bounds_min: Vec4,
+    pub bounds_max: Vec4,
+    /// Radiance of rays that leave the scene.
+    pub environment: Vec4,
+    pub width: u32,
+    pub height: u32,
+    /// First sample index of this pass and number of samples it adds per pixel.
+    pub sample_start: u32,
+    pub sample_count: u32,
+    pub seed: u32,
+    /// Indirect bounces: 0 is direct light only.
+    pub max_bounces: u32,
+    /// Bounce from which Russian roulette may end a path.
+    pub rr_start: u32,
+    pub light_count: u32,
+    /// 1 / width and 1 / height, computed once on the host so both devices multiply.
+    pub inv_width: f32,
+    pub inv_height: f32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+}

@@ -1,0 +1,26 @@
+//! The single-source core of kdtrace: everything that runs per ray or per sample.
+//!
+//! This crate is `no_std` and compiles both natively (the CPU reference renderer in `host`) and to
+//! SPIR-V through rust-gpu (the compute kernel in `kernel`). Both call the very same functions, so the
+//! GPU image can be checked against the CPU image pixel by pixel.
+//!
+//! Rules that keep the two devices bit-identical where Vulkan allows it (see
+//! `../shared/docs/rust-gpu-notes.md`): only `+ − × ÷ sqrt` and comparisons on floats; our own
+//! polynomial sin/cos (`trig`); finiteness tested by bit pattern (`numerics`); no expression of the
+//! form `1 - a - b` that the SPIR-V optimiser may reassociate.
+#![cfg_attr(not(test), no_std)]
+
+pub use spirv_std::glam;
+
+pub mod camera;
+pub mod integrator;
+pub mod kdtree;
+pub mod layout;
+pub mod material;
+pub mod numerics;
+pub mod rng;
+pub mod sampling;
+pub mod scene;
+pub mod triangle;
+pub mod trig;
+pub mod vecmath;

@@ -1,0 +1,134 @@
+//! Conservative floating-point tools, in one place (pbrt-v4 `ray.h`/`float.h`, Psychopath's
+//! `fp_utils.rs`, Wächter & Binder, "A Fast and Robust Method for Avoiding Self-Intersection",
+//! Ray Tracing Gems ch. 6).
+//!
+//! Every test here works on bit patterns: Vulkan drivers may optimise `x != x` away and need not
+//! produce NaNs, so self-comparison is not a reliable finiteness test on the GPU.
+use crate::glam::Vec3;
+
+/// Unit roundoff of f32 (half an ulp of 1.0).
+pub const MACHINE_EPSILON: f32 = f32::EPSILON * 0.5;
+
+/// γ(n) = nε / (1 − nε): the relative error bound of n chained roundings (pbrt-v4 §6.8.1).
+#[inline]
+pub const fn gamma(n: u32) -> f32 {
+    let ne = n as f32 * MACHINE_EPSILON;
+    ne / (1.0 - ne)
+}
+
+/// Relative slack applied to t-intervals during k-d traversal. Split-plane distances carry about
+/// γ(3) of error and watertight hit distances a few ulps of the triangle's extent along the ray;
+/// widening by 2^-16 visits a node more only when a hit lies within that margin of its boundary.
+pub const T_SLACK: f32 = 1.0 / 65536.0;
+
+#[inline]
+pub fn is_finite(x: f32) -> bool {
+    (x.to_bits() & 0x7f80_0000) != 0x7f80_0000
+}
+
+#[inline]
+pub fn is_finite3(v: Vec3) -> bool {
+    is_finite(v.x) & is_finite(v.y) & is_finite(v.z)
+}
+
+/// The next representable f32 above `x` (Psychopath's `next_float_up`).
+#[inline]
+pub fn next_float_up(x: f32) -> f32 {
+    if !is_finite(x) && x > 0.0 {
+        return x;
+    }
+    let x = if x == -0.0 { 0.0 } else { x };
+    let bits = x.to_bits();
+    let bits = if x >= 0.0 { bits + 1 } else { bits - 1 };
+    f32::from_bits(bits)
+}
+
+/// The next representable f32 below `x`.
+#[inline]
+pub fn next_float_down(x: f32) -> f32 {
+    if !is_finite(x) && x < 0.0 {
+        return x;
+    }
+    let x = if x == 0.0 { -0.0 } else { x };
+    let bits = x.to_bits();
+    let bits = if x > 0.0 { bits - 1 } else { bits + 1 };
+    f32::from_bits(bits)
+}
+
+/// Moves `p` off the surface with normal `n` (pointing to the side the new ray leaves from) by a
+/// few hundred ulps of `p` (Wächter & Binder 2019). Far from the origin the step is in integer ulps,
+/// so it scales with the position's own rounding error; near the origin, where ulps become tiny, a
+/// fixed float step takes over. Only integer and bit operations: identical on CPU and GPU.
+#[inline]
+pub fn offset_ray_origin(p: Vec3, n: Vec3) -> Vec3 {
+    const ORIGIN: f32 = 1.0 / 32.0;
+    const FLOAT_SCALE: f32 = 1.0 / 65536.0;
+    const INT_SCALE: f32 = 256.0;
+    Vec3::new(
+        offset_component(p.x, n.x, ORIGIN, FLOAT_SCALE, INT_SCALE),
+        offset_component(p.y, n.y, ORIGIN, FLOAT_SCALE, INT_SCALE),
+        offset_component(p.z, n.z, ORIGIN, FLOAT_SCALE, INT_SCALE),
+    )
+}
+
+#[inline]
+fn offset_component(p: f32, n: f32, origin: f32, float_scale: f32, int_scale: f32) -> f32 {
+    if p.abs() < origin {
+        return p + float_scale * n;
+    }
+    let step = (int_scale * n) as i32;
+    // Moving away from zero grows the magnitude, so the sign of p decides the direction of the
+    // integer step.
+    let signed = if p < 0.0 { -step } else { step };
+    f32::from_bits((p.to_bits() as i32).wrapping_add(signed) as u32)
+}
+
+/// Zeroes a non-finite or negative radiance sample. Returns the sample and whether it was bad.
+#[inline]
+pub fn sanitize_radiance(l: Vec3) -> (Vec3, bool) {
+    let bad = !is_finite3(l) | (l.x < 0.0) | (l.y < 0.0) | (l.z < 0.0);
+    if bad {
+        (Vec3::ZERO, true)
+    } else {
+        (l, false)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn finiteness_by_bits() {
+        assert!(is_finite(0.0) && is_finite(-1e38) && is_finite(f32::MIN_POSITIVE / 2.0));
+        assert!(!is_finite(f32::NAN) && !is_finite(f32::INFINITY) && !is_finite(f32::NEG_INFINITY));
+    }
+
+    #[test]
+    fn float_steps_are_one_ulp() {
+        for &x in &[1.0f32, -1.0, 0.0, -0.0, 1e-30, -3.5e7, f32::MAX / 2.0] {
+            let up = next_float_up(x);
+            let down = next_float_down(x);
+            assert!(up > x && down < x, "{x}: {down} {up}");
+            assert_eq!(next_float_down(up), if x == 0.0 { 0.0 } else { x });
+        }
+    }
+
+    #[test]
+    fn offset_moves_to_the_normal_side() {
+        for &p in &[0.0f32, 0.01, -0.01, 1.0, -1.0, 1e4, -1e4, 1e6] {
+            for &n in &[1.0f32, -1.0] {
+                let q = offset_ray_origin(Vec3::splat(p), Vec3::splat(n));
+                assert!((q.x - p) * n > 0.0, "p={p} n={n} q={}", q.x);
+            }
+        }
+    }
+
+    #[test]
+    fn sanitize_catches_nan_inf_and_negative() {
+        assert!(sanitize_radiance(Vec3::new(f32::NAN, 0.0, 0.0)).1);
+        assert!(sanitize_radiance(Vec3::new(0.0, f32::INFINITY, 0.0)).1);
+        assert!(sanitize_radiance(Vec3::new(0.0, 0.0, -1.0)).1);
+        assert_eq!(sanitize_radiance(Vec3::new(1.0, 2.0, 3.0)), (Vec3::new(1.0, 2.0, 3.0), false));
+    }
+}

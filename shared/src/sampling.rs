@@ -1,0 +1,145 @@
+//! Sample warps and the multiple-importance weight (pbrt-v4 §A.5, Veach 1997 §9).
+//!
+//! Only exactly rounded operations and `trig`'s polynomials, so a warp gives the same bits on
+//! every device for the same uniforms.
+use crate::glam::Vec3;
+use crate::layout::Light;
+use crate::trig::{cos_quarter, sin_quarter};
+#[allow(unused_imports)]
+use spirv_std::num_traits::Float;
+
+pub const PI: f32 = core::f32::consts::PI;
+pub const INV_PI: f32 = core::f32::consts::FRAC_1_PI;
+
+/// Shirley & Chiu's concentric map of [0,1)² onto the unit disk (area preserving, low
+/// distortion). The angle is always within ±π/4 of an axis, so quarter-range sin/cos suffice.
+#[inline]
+pub fn concentric_disk(u1: f32, u2: f32) -> (f32, f32) {
+    let a = 2.0 * u1 - 1.0;
+    let b = 2.0 * u2 - 1.0;
+    if (a == 0.0) & (b == 0.0) {
+        return (0.0, 0.0);
+    }
+    if a.abs() > b.abs() {
+        let phi = core::f32::consts::FRAC_PI_4 * (b / a);
+        (a * cos_quarter(phi), a * sin_quarter(phi))
+    } else {
+        // θ = π/2 − φ: cos θ = sin φ, sin θ = cos φ.
+        let phi = core::f32::consts::FRAC_PI_4 * (a / b);
+        (b * sin_quarter(phi), b * cos_quarter(phi))
+    }
+}
+
+/// Cosine-weighted direction about +z (Malley's method); pdf = cos θ / π.
+#[inline]
+pub fn cosine_hemisphere(u1: f32, u2: f32) -> Vec3 {
+    let (x, y) = concentric_disk(u1, u2);
+    let z2 = 1.0 - x * x - y * y;
+    Vec3::new(x, y, if z2 > 0.0 { z2.sqrt() } else { 0.0 })
+}
+
+/// An orthonormal basis (t, b) around unit `n` (Duff et al., "Building an Orthonormal Basis,
+/// Revisited", JCGT 2017): branch-free apart from the sign, no normalisation needed.
+#[inline]
+pub fn orthonormal_basis(n: Vec3) -> (Vec3, Vec3) {
+    let sign = if n.z >= 0.0 { 1.0 } else { -1.0 };
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    (Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x), Vec3::new(b, sign + n.y * n.y * a, -n.y))
+}
+
+/// Uniform barycentric weights of (v0, v1, v2) on a triangle (pbrt-v3 `UniformSampleTriangle`).
+/// b2 is written as `su − b1`, not `1 − b0 − b1`, which SPIR-V optimisers reassociate.
+#[inline]
+pub fn uniform_triangle(u1: f32, u2: f32) -> (f32, f32, f32) {
+    let su = u1.sqrt();
+    let b0 = 1.0 - su;
+    let b1 = u2 * su;
+    (b0, b1, su - b1)
+}
+
+/// Veach's power heuristic (β = 2) for the strategy with density `f` against one with `g`.
+#[inline]
+pub fn power_heuristic(f: f32, g: f32) -> f32 {
+    let f2 = f * f;
+    let g2 = g * g;
+    if f2 + g2 == 0.0 {
+        return 0.0;
+    }
+    // An infinite density (a delta) takes all the weight; ∞/∞ would be NaN.
+    if f2 > f32::MAX {
+        return 1.0;
+    }
+    f2 / (f2 + g2)
+}
+
+/// Index of the light whose cumulative interval contains `u` (binary search over `cdf`).
+#[inline]
+pub fn select_light(lights: &[Light], count: u32, u: f32) -> u32 {
+    let mut lo = 0u32;
+    let mut hi = count - 1;
+    while lo < hi {
+        let mid = (lo + hi) / 2;
+        if u < lights[mid as usize].cdf {
+            hi = mid;
+        } else {
+            lo = mid + 1;
+        }
+    }
+    lo
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn disk_and_hemisphere_are_unit() {
+        for i in 0..64 {
+            for j in 0..64 {
+                let (u1, u2) = (i as f32 / 64.0, j as f32 / 64.0);
+                let (x, y) = concentric_disk(u1, u2);
+                assert!(x * x + y * y <= 1.0 + 1e-6);
+                let w = cosine_hemisphere(u1, u2);
+                assert!((w.length() - 1.0).abs() < 1e-5 && w.z >= 0.0);
+            }
+        }
+    }
+
+    #[test]
+    fn basis_is_orthonormal() {
+        for &n in &[Vec3::Z, -Vec3::Z, Vec3::X, Vec3::new(0.3, -0.5, 0.81).normalize(), Vec3::new(-1e-4, 1e-4, -1.0).normalize()] {
+            let (t, b) = orthonormal_basis(n);
+            assert!(t.dot(b).abs() < 1e-5 && t.dot(n).abs() < 1e-5 && b.dot(n).abs() < 1e-5);
+            assert!((t.length() - 1.0).abs() < 1e-5 && (b.length() - 1.0).abs() < 1e-5);
+        }
+    }
+
+    #[test]
+    fn triangle_weights_sum_to_one() {
+        for i in 0..100 {
+            let (b0, b1, b2) = uniform_triangle(i as f32 / 100.0, 0.37);
+            assert!((b0 + b1 + b2 - 1.0).abs() < 1e-6 && b0 >= 0.0 && b1 >= 0.0 && b2 >= 0.0);
+        }
+    }
+
+    #[test]
+    fn light_selection_follows_the_cdf() {
+        let l = |cdf| Light { triangle: 0, pmf: 0.0, cdf, area: 1.0 };
+        let lights = [l(0.25), l(0.5), l(0.5), l(1.0)];
+        assert_eq!(select_light(&lights, 4, 0.0), 0);
+        assert_eq!(select_light(&lights, 4, 0.2499), 0);
+        assert_eq!(select_light(&lights, 4, 0.25), 1);
+        assert_eq!(select_light(&lights, 4, 0.5), 3, "zero-probability light 2 is never picked");
+        assert_eq!(select_light(&lights, 4, 0.9999), 3);
+        assert_eq!(select_light(&lights, 1, 0.7), 0);
+    }
+
+    #[test]
+    fn power_heuristic_limits() {
+        assert_eq!(power_heuristic(1.0, 0.0), 1.0);
+        assert_eq!(power_heuristic(0.0, 0.0), 0.0);
+        assert_eq!(power_heuristic(f32::INFINITY, 1.0), 1.0);
+        assert!((power_heuristic(1.0, 1.0) - 0.5).abs() < 1e-7);
+    }
+}

@@ -1,0 +1,45 @@
+//! The scene as the integrator sees it: borrowed slices of the GPU buffers.
+use crate::glam::Vec3;
+use crate::layout::{KdNode, Light, Material, RenderParams, Triangle, TriangleInfo};
+use crate::vecmath::xyz;
+
+#[derive(Clone, Copy)]
+pub struct SceneView<'a> {
+    pub nodes: &'a [KdNode],
+    /// Triangle ids of all leaves, each leaf a contiguous run.
+    pub indices: &'a [u32],
+    pub triangles: &'a [Triangle],
+    pub info: &'a [TriangleInfo],
+    pub materials: &'a [Material],
+    /// The first `light_count` entries are real (a GPU buffer cannot be empty).
+    pub lights: &'a [Light],
+    pub light_count: u32,
+    pub bounds_min: Vec3,
+    pub bounds_max: Vec3,
+}
+
+impl<'a> SceneView<'a> {
+    /// Binds the buffers; light count and bounds travel in the render parameters.
+    #[inline]
+    pub fn new(
+        params: &RenderParams,
+        nodes: &'a [KdNode],
+        indices: &'a [u32],
+        triangles: &'a [Triangle],
+        info: &'a [TriangleInfo],
+        materials: &'a [Material],
+        lights: &'a [Light],
+    ) -> Self {
+        Self {
+            nodes,
+            indices,
+            triangles,
+            info,
+            materials,
+            lights,
+            light_count: params.light_count,
+            bounds_min: xyz(params.bounds_min),
+            bounds_max: xyz(params.bounds_max),
+        }
+    }
+}

@@ -1,0 +1,158 @@
+//! Watertight ray/triangle intersection (Woop, Benthin & Wald, "Watertight Ray/Triangle
+//! Intersection", JCGT 2013).
+//!
+//! The ray is sheared and scaled so that it runs along +z from the origin; the triangle is tested
+//! in 2D with edge functions. An edge shared by two triangles is evaluated from the same products
+//! in both (negated), so a ray can never pass between them. A zero edge function counts as inside
+//! for both neighbours: rays through edges and vertices hit at least one triangle.
+//! No f64 fallback: not every GPU has `Float64`, and the zero case is already closed.
+use crate::glam::Vec3;
+use crate::layout::Triangle;
+use crate::vecmath::{axis, xyz};
+
+/// Per-ray constants of the watertight test.
+#[derive(Clone, Copy)]
+pub struct RayShear {
+    pub origin: Vec3,
+    kx: u32,
+    ky: u32,
+    kz: u32,
+    sx: f32,
+    sy: f32,
+    sz: f32,
+}
+
+/// A hit: distance along the (possibly unnormalised) direction and the unnormalised barycentric
+/// weights of v0, v1, v2 (divide by their sum).
+#[derive(Clone, Copy)]
+pub struct TriangleHit {
+    pub t: f32,
+    pub u: f32,
+    pub v: f32,
+    pub w: f32,
+}
+
+impl RayShear {
+    #[inline]
+    pub fn new(origin: Vec3, dir: Vec3) -> Self {
+        let a = dir.abs();
+        // The dominant axis becomes z; ties keep the lowest index so both devices pick the same.
+        let kz = if a.x >= a.y && a.x >= a.z {
+            0
+        } else if a.y >= a.z {
+            1
+        } else {
+            2
+        };
+        let mut kx = if kz == 2 { 0 } else { kz + 1 };
+        let mut ky = if kx == 2 { 0 } else { kx + 1 };
+        // Keep the winding of the projected triangle when the dominant component is negative.
+        if axis(dir, kz) < 0.0 {
+            core::mem::swap(&mut kx, &mut ky);
+        }
+        let dz = axis(dir, kz);
+        let sz = 1.0 / dz;
+        Self { origin, kx, ky, kz, sx: axis(dir, kx) * sz, sy: axis(dir, ky) * sz, sz }
+    }
+
+    /// Intersects `tri`; returns the hit when its distance lies strictly inside (t_min, t_max).
+    #[inline]
+    pub fn intersect(&self, tri: &Triangle, t_min: f32, t_max: f32) -> Option<TriangleHit> {
+        let a = xyz(tri.v0) - self.origin;
+        let b = xyz(tri.v1) - self.origin;
+        let c = xyz(tri.v2) - self.origin;
+        let (akz, bkz, ckz) = (axis(a, self.kz), axis(b, self.kz), axis(c, self.kz));
+        let ax = axis(a, self.kx) - self.sx * akz;
+        let ay = axis(a, self.ky) - self.sy * akz;
+        let bx = axis(b, self.kx) - self.sx * bkz;
+        let by = axis(b, self.ky) - self.sy * bkz;
+        let cx = axis(c, self.kx) - self.sx * ckz;
+        let cy = axis(c, self.ky) - self.sy * ckz;
+        let u = cx * by - cy * bx;
+        let v = ax * cy - ay * cx;
+        let w = bx * ay - by * ax;
+        // Non-short-circuit `|`/`&`: one branch on the GPU instead of a cascade.
+        let any_neg = (u < 0.0) | (v < 0.0) | (w < 0.0);
+        let any_pos = (u > 0.0) | (v > 0.0) | (w > 0.0);
+        if any_neg & any_pos {
+            return None;
+        }
+        let det = u + v + w;
+        if det == 0.0 {
+            return None;
+        }
+        let t_scaled = u * (self.sz * akz) + v * (self.sz * bkz) + w * (self.sz * ckz);
+        let t = t_scaled / det;
+        // NaN (from a garbage ray) fails both comparisons and is rejected.
+        if (t > t_min) & (t < t_max) {
+            Some(TriangleHit { t, u, v, w })
+        } else {
+            None
+        }
+    }
+}
+
+/// Geometric normal (v1 − v0) × (v2 − v0), unnormalised. It points to the front side: the side
+/// from which v0, v1, v2 appear counter-clockwise.
+#[inline]
+pub fn geometric_normal(tri: &Triangle) -> Vec3 {
+    crate::vecmath::cross(xyz(tri.v1) - xyz(tri.v0), xyz(tri.v2) - xyz(tri.v0))
+}
+
+/// The hit point from barycentric weights: far more accurate than `origin + t·dir`.
+#[inline]
+pub fn hit_point(tri: &Triangle, hit: &TriangleHit) -> Vec3 {
+    let inv = 1.0 / (hit.u + hit.v + hit.w);
+    xyz(tri.v0) * (hit.u * inv) + xyz(tri.v1) * (hit.v * inv) + xyz(tri.v2) * (hit.w * inv)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::glam::Vec4;
+
+    fn tri(a: [f32; 3], b: [f32; 3], c: [f32; 3]) -> Triangle {
+        Triangle { v0: Vec4::new(a[0], a[1], a[2], 0.0), v1: Vec4::new(b[0], b[1], b[2], 0.0), v2: Vec4::new(c[0], c[1], c[2], 0.0) }
+    }
+
+    #[test]
+    fn hits_front_and_back_with_the_right_distance() {
+        let t = tri([-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [0.0, 1.0, 0.0]);
+        for &(oz, dz) in &[(2.0f32, -1.0f32), (-3.0, 1.0), (2.0, -0.5)] {
+            let r = RayShear::new(Vec3::new(0.1, 0.0, oz), Vec3::new(0.0, 0.0, dz));
+            let h = r.intersect(&t, 0.0, f32::INFINITY).expect("hit");
+            assert!((h.t * dz.abs() - oz.abs()).abs() < 1e-6);
+            let p = hit_point(&t, &h);
+            assert!((p - Vec3::new(0.1, 0.0, 0.0)).abs().max_element() < 1e-6);
+        }
+        let r = RayShear::new(Vec3::new(2.0, 0.0, 1.0), Vec3::new(0.0, 0.0, -1.0));
+        assert!(r.intersect(&t, 0.0, f32::INFINITY).is_none());
+        let r = RayShear::new(Vec3::new(0.0, 0.0, 1.0), Vec3::new(0.0, 0.0, -1.0));
+        assert!(r.intersect(&t, 0.0, 0.5).is_none(), "t_max respected");
+    }
+
+    #[test]
+    fn shared_edge_has_no_gap() {
+        // Two triangles sharing the diagonal of a unit square; rays on and near the diagonal.
+        let a = tri([0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0]);
+        let b = tri([0.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]);
+        for i in 0..=1000 {
+            let s = i as f32 / 1000.0;
+            for &e in &[0.0f32, 1e-7, -1e-7] {
+                let o = Vec3::new(s + e, s, 1.0);
+                let r = RayShear::new(o, Vec3::new(0.013, -0.007, -1.0));
+                let hit = r.intersect(&a, 0.0, f32::INFINITY).is_some() | r.intersect(&b, 0.0, f32::INFINITY).is_some();
+                let inside = (o.x + 0.013 >= 0.0) & (o.x + 0.013 <= 1.0) & (o.y - 0.007 >= 0.0) & (o.y - 0.007 <= 1.0);
+                if inside && (0.001..0.98).contains(&s) {
+                    assert!(hit, "gap at s={s} e={e}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn normal_points_to_the_ccw_side() {
+        let t = tri([0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]);
+        assert!(geometric_normal(&t).z > 0.0);
+    }
+}

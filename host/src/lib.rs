@@ -6,6 +6,7 @@ pub mod gpu;
 pub mod image_io;
 pub mod kdbuild;
 pub mod obj;
+pub mod procedural;
 pub mod render;
 pub mod scene;
 pub mod verify;
@@ -27,7 +28,13 @@ pub fn load(path: &Path, settings: kdbuild::BuildSettings) -> Result<Loaded> {
     let scene = obj::load_obj(path)?;
     let load_s = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();
-    let tree = kdbuild::build(&scene.triangles, scene.bounds_min, scene.bounds_max, settings);
+    let compiled = compile(scene, settings);
     let build_s = t1.elapsed().as_secs_f64();
-    Ok(Loaded { compiled: render::Compiled::new(scene, tree), load_s, build_s })
+    Ok(Loaded { compiled, load_s, build_s })
+}
+
+/// Builds a scene's k-d tree.
+pub fn compile(scene: scene::Scene, settings: kdbuild::BuildSettings) -> render::Compiled {
+    let tree = kdbuild::build(&scene.triangles, scene.bounds_min, scene.bounds_max, settings);
+    render::Compiled::new(scene, tree)
 }

@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# Installs what kdtrace needs on a fresh Debian/Ubuntu machine: the pinned nightly that rust-gpu
+# 0.11 requires, the SPIR-V tools rust-gpu links against, and Mesa's lavapipe (a Vulkan device on
+# the CPU) so the GPU path runs even where no GPU is attached. Idempotent.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+
+need_apt=()
+command -v spirv-opt >/dev/null 2>&1 || need_apt+=(spirv-tools)
+# lavapipe: only needed where no Vulkan driver is installed, harmless beside a real one.
+ls /usr/share/vulkan/icd.d/lvp_icd*.json >/dev/null 2>&1 || need_apt+=(mesa-vulkan-drivers)
+ldconfig -p 2>/dev/null | grep -q 'libvulkan.so.1' || need_apt+=(libvulkan1)
+if [ ${#need_apt[@]} -gt 0 ]; then
+  echo "setup: installing ${need_apt[*]}" >&2
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${need_apt[@]}" >/dev/null
+fi
+
+toolchain=$(sed -n 's/^channel *= *"\(.*\)"/\1/p' rust-toolchain.toml)
+if ! rustup run "$toolchain" rustc --version >/dev/null 2>&1 || \
+   ! rustup component list --toolchain "$toolchain" --installed 2>/dev/null | grep -q '^rustc-dev'; then
+  echo "setup: installing Rust $toolchain" >&2
+  rustup toolchain install "$toolchain" --profile minimal --component rust-src,rustc-dev,llvm-tools
+fi

@@ -1,0 +1,172 @@
+//! The k-d traversal must return exactly what testing every triangle returns: the same distance
+//! bit for bit and the same triangle, unless two triangles are hit at that very distance.
+use kdtrace::kdbuild::{validate, BuildSettings};
+use kdtrace::render::Compiled;
+use kdtrace::{compile, obj, procedural};
+use rand::{Rng, SeedableRng};
+use rand_pcg::Pcg64;
+use rayon::prelude::*;
+use shared::glam::Vec3;
+use shared::kdtree::{intersect, intersect_brute_force, occluded};
+use shared::layout::RenderParams;
+use shared::scene::SceneView;
+use shared::triangle::RayShear;
+use shared::vecmath::xyz;
+use std::path::PathBuf;
+
+fn shared_scene(rel: &str) -> PathBuf {
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/scenes").join(rel);
+    assert!(p.exists(), "{} is missing: these tests read the public meshes in ../shared/scenes", p.display());
+    p
+}
+
+fn view(c: &Compiled) -> SceneView<'_> {
+    let params = RenderParams {
+        bounds_min: c.tree.bounds_min.extend(0.0),
+        bounds_max: c.tree.bounds_max.extend(0.0),
+        light_count: c.scene.lights.len() as u32,
+        ..Default::default()
+    };
+    c.view(&params)
+}
+
+/// Compares tree and brute force on every ray; returns (rays, hits). Panics on the first mismatch.
+fn check_rays(c: &Compiled, rays: &[(Vec3, Vec3)]) -> (usize, usize) {
+    let scene = view(c);
+    let hits: usize = rays
+        .par_iter()
+        .map(|&(o, d)| {
+            let tree = intersect(&scene, o, d, f32::MAX);
+            let brute = intersect_brute_force(&scene, o, d, f32::MAX);
+            assert_eq!(tree.t.to_bits(), brute.t.to_bits(), "ray o={o:?} d={d:?}: tree t={} (tri {}) brute t={} (tri {})", tree.t, tree.triangle, brute.t, brute.triangle);
+            if tree.triangle != brute.triangle {
+                // A tie: the tree's triangle must be hit at exactly the same distance.
+                let shear = RayShear::new(o, shared::kdtree::flush_denormals(d));
+                let h = shear.intersect(&scene.triangles[tree.triangle as usize], 0.0, f32::MAX).expect("tree returned a triangle the ray misses");
+                assert_eq!(h.t.to_bits(), brute.t.to_bits(), "ray o={o:?} d={d:?}: different triangles at different t");
+            }
+            assert_eq!(occluded(&scene, o, d, f32::MAX), brute.is_hit(), "occlusion disagrees for o={o:?} d={d:?}");
+            brute.is_hit() as usize
+        })
+        .sum();
+    (rays.len(), hits)
+}
+
+fn random_unit(rng: &mut Pcg64) -> Vec3 {
+    loop {
+        let v = Vec3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
+        let l = v.length();
+        if l > 1e-3 && l <= 1.0 {
+            return v / l;
+        }
+    }
+}
+
+/// Half the rays start anywhere in the (enlarged) box in random directions; half are aimed from
+/// outside at random points of random triangles, so most of them hit.
+fn random_rays(c: &Compiled, n: usize, seed: u64) -> Vec<(Vec3, Vec3)> {
+    let mut rng = Pcg64::seed_from_u64(seed);
+    let (lo, hi) = (c.tree.bounds_min, c.tree.bounds_max);
+    let center = 0.5 * (lo + hi);
+    let radius = 0.5 * (hi - lo).length();
+    (0..n)
+        .map(|i| {
+            if i % 2 == 0 {
+                let o = center + (hi - lo) * 0.6 * Vec3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
+                (o, random_unit(&mut rng))
+            } else {
+                let t = &c.scene.triangles[rng.random_range(0..c.scene.triangles.len())];
+                let (a, b): (f32, f32) = (rng.random(), rng.random());
+                let (a, b) = if a + b > 1.0 { (1.0 - a, 1.0 - b) } else { (a, b) };
+                let target = xyz(t.v0) + (xyz(t.v1) - xyz(t.v0)) * a + (xyz(t.v2) - xyz(t.v0)) * b;
+                let o = center + random_unit(&mut rng) * (2.0 * radius);
+                (o, target - o)
+            }
+        })
+        .collect()
+}
+
+fn mesh_case(rel: &str, seed: u64) {
+    let scene = obj::load_obj(&shared_scene(rel)).unwrap();
+    let c = compile(scene, BuildSettings::default());
+    validate(&c.tree, &c.scene.triangles).unwrap();
+    let (rays, hits) = check_rays(&c, &random_rays(&c, 100_000, seed));
+    assert!(hits > rays / 3, "{rel}: only {hits} of {rays} rays hit: the test would prove little");
+    eprintln!("{rel}: {} triangles, {} nodes, depth {}, {rays} rays, {hits} hits, all equal to brute force", c.scene.triangles.len(), c.tree.nodes.len(), c.tree.depth);
+}
+
+#[test]
+fn bunny_matches_brute_force() {
+    mesh_case("bunny-stanford-bun_zipper/bun_zipper.obj", 1);
+}
+
+#[test]
+fn dragon_matches_brute_force() {
+    mesh_case("dragon-23k/dragon.obj", 2);
+}
+
+#[test]
+fn cornell_box_original_matches_brute_force() {
+    // Coincident duplicate faces: ties are expected and allowed.
+    mesh_case("CornellBox-Original/CornellBox-Original.obj", 3);
+}
+
+/// Rays along grid lines of a grid-aligned staircase: axis-parallel, through vertices, along
+/// edges, lying in faces and in split planes.
+#[test]
+fn staircase_grid_line_rays_match_brute_force() {
+    let (steps, width) = (16u32, 8u32);
+    let c = compile(procedural::staircase(steps, width).unwrap(), BuildSettings::default());
+    validate(&c.tree, &c.scene.triangles).unwrap();
+    let mut rays = Vec::new();
+    let axes = [Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z];
+    let diagonals = [Vec3::new(1.0, 1.0, 0.0), Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 1.0), Vec3::new(-1.0, 0.0, 1.0), Vec3::new(1.0, -1.0, -1.0)];
+    let n = steps as i32 + 2;
+    for x in -1..=n {
+        for y in -1..=n {
+            for z in -1..=(width as i32 + 1) {
+                let base = Vec3::new(x as f32, y as f32, z as f32);
+                for o in [base, base + Vec3::new(0.5, 0.0, 0.0), base + Vec3::new(0.0, 0.5, 0.5), base + Vec3::splat(0.5)] {
+                    for d in axes.iter().chain(&diagonals) {
+                        rays.push((o, *d));
+                    }
+                }
+            }
+        }
+    }
+    let (count, hits) = check_rays(&c, &rays);
+    assert!(hits > count / 4, "only {hits} of {count} grid rays hit");
+    eprintln!("staircase: {} triangles, {count} grid-line rays, {hits} hits, all equal to brute force", c.scene.triangles.len());
+}
+
+#[test]
+fn garbage_rays_miss_without_hanging() {
+    let c = compile(procedural::staircase(4, 2).unwrap(), BuildSettings::default());
+    let scene = view(&c);
+    let nan = f32::NAN;
+    let inf = f32::INFINITY;
+    for (o, d) in [
+        (Vec3::new(nan, 1.0, 1.0), Vec3::X),
+        (Vec3::new(1.0, 1.0, 1.0), Vec3::new(nan, 0.0, 0.0)),
+        (Vec3::new(inf, 1.0, 1.0), -Vec3::X),
+        (Vec3::new(1.0, 1.0, 1.0), Vec3::new(inf, 1.0, 0.0)),
+        (Vec3::new(1.0, 1.0, 1.0), Vec3::ZERO),
+        (Vec3::new(1.0, 1.0, 1.0), Vec3::new(1e-40, 0.0, 0.0)),
+    ] {
+        assert!(!intersect(&scene, o, d, f32::MAX).is_hit(), "o={o:?} d={d:?}");
+    }
+}
+
+#[test]
+fn tree_is_valid_and_shallow_enough() {
+    for scene in [procedural::staircase(32, 4).unwrap(), procedural::furnace(0.5, 1.0).unwrap()] {
+        let c = compile(scene, BuildSettings::default());
+        validate(&c.tree, &c.scene.triangles).unwrap();
+        assert!(c.tree.depth <= shared::layout::KD_MAX_DEPTH);
+    }
+    // A corrupted tree is caught.
+    let mut c = compile(procedural::staircase(8, 2).unwrap(), BuildSettings::default());
+    let leaf = c.tree.nodes.iter().position(|n| n.is_leaf() && n.count() > 0).unwrap();
+    c.tree.nodes[leaf] = shared::layout::KdNode::leaf(0, 0);
+    assert!(validate(&c.tree, &c.scene.triangles).is_err());
+}

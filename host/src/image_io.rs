@@ -12,6 +12,14 @@ pub fn linear_to_srgb(x: f32) -> f32 {
     }
 }
 
+/// The output formats by extension; an error for anything else (checked before rendering).
+pub fn check_output_path(path: &Path) -> Result<()> {
+    match path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref() {
+        Some("png") | Some("exr") => Ok(()),
+        _ => bail!("{}: unknown image format (use .png or .exr)", path.display()),
+    }
+}
+
 pub fn write_image(path: &Path, width: u32, height: u32, rgb: &[[f32; 3]]) -> Result<()> {
     if rgb.len() != (width * height) as usize {
         bail!("{}: {} pixels for a {width}x{height} image", path.display(), rgb.len());

@@ -163,6 +163,7 @@ fn run_device(device: Device, c: &Compiled, s: &RenderSettings, a: &ImageArgs) -
 }
 
 fn render(r: RenderArgs) -> Result<ExitCode> {
+    image_io::check_output_path(&r.out)?;
     let loaded = kdtrace::load(&r.scene, kdbuild::BuildSettings::default())?;
     let c = &loaded.compiled;
     let s = settings(&r.image, c)?;

@@ -1,0 +1,108 @@
+//! The command line as a user meets it: the README's render, JSON output, verify's exit code,
+//! and bad input that gets exit code 2 and a message naming the file (never a panic).
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn kdtrace(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_kdtrace")).args(args).output().expect("run kdtrace")
+}
+
+fn repo(rel: &str) -> String {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..").join(rel).to_string_lossy().into_owned()
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("kdtrace-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+#[test]
+fn renders_the_default_scene_on_both_devices_with_json() {
+    for device in ["cpu", "gpu"] {
+        let out = tmp(&format!("cornell-{device}.png"));
+        let o = kdtrace(&["render", &repo("scenes/cornell-box.obj"), "--out", out.to_str().unwrap(), "--device", device, "--spp", "4", "--width", "40", "--height", "30", "--json"]);
+        assert!(o.status.success(), "{device}: {}", stderr(&o));
+        let line: serde_json::Value = serde_json::from_slice(&o.stdout).expect("one JSON line");
+        for key in ["device", "adapter", "triangles", "spp", "width", "height", "load_s", "build_s", "render_s", "samples_per_s"] {
+            assert!(line.get(key).is_some(), "{device}: JSON lacks {key}: {line}");
+        }
+        assert_eq!(line["device"], device);
+        assert_eq!(line["triangles"], 32);
+        assert_eq!((line["width"].as_u64(), line["height"].as_u64(), line["spp"].as_u64()), (Some(40), Some(30), Some(4)));
+        let img = image::open(&out).unwrap();
+        assert_eq!((img.width(), img.height()), (40, 30));
+        let bright = img.to_rgb8().pixels().filter(|p| p.0.iter().any(|&c| c > 20)).count();
+        assert!(bright > 600, "{device}: image mostly black ({bright} lit pixels)");
+    }
+}
+
+#[test]
+fn writes_linear_exr() {
+    let out = tmp("cornell.exr");
+    let o = kdtrace(&["render", &repo("scenes/cornell-box.obj"), "--out", out.to_str().unwrap(), "--spp", "2", "--width", "16", "--height", "16", "--bounces", "0"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (w, h, px) = kdtrace::image_io::read_exr(&out).unwrap();
+    assert_eq!((w, h, px.len()), (16, 16, 256));
+    // Linear radiance: the light itself is far above 1.
+    assert!(px.iter().any(|p| p[0] > 2.0), "no HDR values in the EXR");
+}
+
+#[test]
+fn verify_agrees_and_says_so() {
+    let o = kdtrace(&["verify", &repo("scenes/cornell-box.obj"), "--spp", "4", "--width", "32", "--height", "32", "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let line: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(line["agreement"]["pass"], true, "{line}");
+    assert_eq!(line["agreement"]["pixels"], 1024);
+}
+
+fn write(name: &str, text: &str) -> PathBuf {
+    let p = tmp(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+fn expect_input_error(args: &[&str], needle: &str) {
+    let o = kdtrace(args);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "args {args:?}: expected exit 2, got {:?}; stderr: {err}", o.status.code());
+    assert!(err.contains(needle), "args {args:?}: stderr lacks {needle:?}: {err}");
+    assert!(!err.contains("panicked"), "{err}");
+}
+
+#[test]
+fn bad_input_exits_2_with_the_file_and_line() {
+    let out = tmp("never.png");
+    let out = out.to_str().unwrap();
+    let missing = tmp("missing.obj");
+    expect_input_error(&["render", missing.to_str().unwrap(), "--out", out], "missing.obj");
+    let nan = write("nan.obj", "v 0 0 0\nv 1 0 0\nv 0 nan 0\nf 1 2 3\n");
+    expect_input_error(&["render", nan.to_str().unwrap(), "--out", out], "nan.obj:3");
+    let huge = write("huge.obj", "v 0 0 0\nv 1e39 0 0\nv 0 1 0\nf 1 2 3\n");
+    expect_input_error(&["render", huge.to_str().unwrap(), "--out", out], "huge.obj:2");
+    let empty = write("empty.obj", "# nothing\n");
+    expect_input_error(&["render", empty.to_str().unwrap(), "--out", out], "no triangles");
+    let bad_index = write("index.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n");
+    expect_input_error(&["render", bad_index.to_str().unwrap(), "--out", out], "index.obj");
+    let cornell = repo("scenes/cornell-box.obj");
+    expect_input_error(&["render", &cornell, "--out", out, "--spp", "0"], "spp");
+    expect_input_error(&["render", &cornell, "--out", out, "--width", "0"], "resolution");
+    expect_input_error(&["render", &cornell, "--out", out, "--eye", "0,0,0", "--target", "0,0,0"], "eye and target");
+    expect_input_error(&["render", &cornell, "--out", tmp("x.bmp").to_str().unwrap(), "--spp", "1", "--width", "4", "--height", "4"], "x.bmp");
+    expect_input_error(&["render", &cornell, "--out", out, "--device", "gpu", "--adapter", "no-such-adapter", "--spp", "1"], "no-such-adapter");
+    assert!(!Path::new(out).exists(), "a failed render wrote its output");
+}
+
+#[test]
+fn missing_material_library_renders_grey() {
+    let obj = write("nomtl.obj", "mtllib absent.mtl\nv -1 -1 0\nv 1 -1 0\nv 0 1 0\nusemtl whatever\nf 1 2 3\n");
+    let out = tmp("nomtl.png");
+    let o = kdtrace(&["render", obj.to_str().unwrap(), "--out", out.to_str().unwrap(), "--spp", "1", "--width", "8", "--height", "8", "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("material library not found"), "{}", stderr(&o));
+}

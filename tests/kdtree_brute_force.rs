@@ -8,7 +8,6 @@ use rand_pcg::Pcg64;
 use rayon::prelude::*;
 use shared::glam::Vec3;
 use shared::kdtree::{intersect, intersect_brute_force, occluded};
-use shared::layout::RenderParams;
 use shared::scene::SceneView;
 use shared::triangle::RayShear;
 use shared::vecmath::xyz;
@@ -21,13 +20,7 @@ fn shared_scene(rel: &str) -> PathBuf {
 }
 
 fn view(c: &Compiled) -> SceneView<'_> {
-    let params = RenderParams {
-        bounds_min: c.tree.bounds_min.extend(0.0),
-        bounds_max: c.tree.bounds_max.extend(0.0),
-        light_count: c.scene.lights.len() as u32,
-        ..Default::default()
-    };
-    c.view(&params)
+    c.view(&c.bounds_params())
 }
 
 /// Compares tree and brute force on every ray; returns (rays, hits). Panics on the first mismatch.

@@ -6,21 +6,74 @@
 use crate::render::{Compiled, Progress, RenderSettings, Rendered};
 use anyhow::{anyhow, bail, Context, Result};
 use shared::glam::Vec4;
-use shared::layout::RenderParams;
+use shared::layout::{RayQuery, RayResult, RenderParams};
 use wgpu::util::DeviceExt;
 
 static KERNEL_SPV: &[u8] = include_bytes!(env!("kernel.spv"));
-const ENTRY_POINT: &str = "render_pass";
-/// The kernel's workgroup size (`threads(8, 8, 1)`).
+const RENDER_ENTRY: &str = "render_pass";
+const CAST_ENTRY: &str = "cast_rays";
+/// The render kernel's workgroup side (`threads(8, 8, 1)`).
 const GROUP: u32 = 8;
+/// The ray-casting kernel's workgroup size (`threads(64, 1, 1)`).
+const CAST_GROUP: u32 = 64;
+/// Vulkan guarantees at least this many workgroups per dispatch dimension.
+const MAX_GROUPS_X: u32 = 65535;
 /// Samples per pixel added in one dispatch are chosen so a pass traces about this many paths.
 const PATHS_PER_PASS: u64 = 1 << 18;
+/// The most samples one invocation traces in one dispatch. On lavapipe (Mesa 22.3.6, LLVM 15)
+/// an invocation that loops over 11 or more samples loses later samples of whole subgroups
+/// (their radiance comes back zero) while 8 or fewer agree with the CPU bit for bit; see
+/// `tests/cpu_gpu_agreement.rs::water_box_agrees_with_many_samples_per_pixel`.
+const MAX_SAMPLES_PER_INVOCATION: u32 = 4;
 
 pub struct Gpu {
     device: wgpu::Device,
     queue: wgpu::Queue,
-    pipeline: wgpu::ComputePipeline,
+    render_pipeline: wgpu::ComputePipeline,
+    cast_pipeline: wgpu::ComputePipeline,
+    bind_layout: wgpu::BindGroupLayout,
     pub adapter: wgpu::AdapterInfo,
+}
+
+/// Group 0 of every entry point, in kernel order.
+mod binding {
+    pub const PARAMS: u32 = 0;
+    pub const ACCUM: u32 = 7;
+    pub const PRIMARY: u32 = 8;
+    // 9: the rays of `cast_rays` (read-only).
+    pub const RESULTS: u32 = 10;
+    /// Bindings in all: the uniform parameters, then storage buffers.
+    pub const COUNT: u32 = 11;
+    /// Storage bindings the kernel writes; every other storage binding is read-only.
+    pub const WRITABLE: [u32; 3] = [ACCUM, PRIMARY, RESULTS];
+}
+
+/// One explicit layout for every entry point. wgpu's automatic layout keeps only the bindings an
+/// entry point uses, so entry points that use different buffers could not share bind groups.
+fn bind_group_layout_entries() -> Vec<wgpu::BindGroupLayoutEntry> {
+    (0..binding::COUNT)
+        .map(|b| wgpu::BindGroupLayoutEntry {
+            binding: b,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty: if b == binding::PARAMS { wgpu::BufferBindingType::Uniform } else { wgpu::BufferBindingType::Storage { read_only: !binding::WRITABLE.contains(&b) } },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        })
+        .collect()
+}
+
+/// The scene's buffers on the device (bindings 0 to 6).
+struct SceneBuffers {
+    params: wgpu::Buffer,
+    nodes: wgpu::Buffer,
+    indices: wgpu::Buffer,
+    triangles: wgpu::Buffer,
+    info: wgpu::Buffer,
+    materials: wgpu::Buffer,
+    lights: wgpu::Buffer,
 }
 
 fn instance() -> wgpu::Instance {
@@ -47,8 +100,9 @@ impl Gpu {
         };
         let info = adapter.get_info();
         let limits = adapter.limits();
-        if limits.max_storage_buffers_per_shader_stage < 8 {
-            bail!("adapter {:?} allows {} storage buffers per stage; the kernel needs 8", info.name, limits.max_storage_buffers_per_shader_stage);
+        let storage = binding::COUNT - 1;
+        if limits.max_storage_buffers_per_shader_stage < storage {
+            bail!("adapter {:?} allows {} storage buffers per stage; the kernel needs {storage}", info.name, limits.max_storage_buffers_per_shader_stage);
         }
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("kdtrace"),
@@ -62,77 +116,134 @@ impl Gpu {
         // Validation errors become an `Err` here instead of wgpu's default panic.
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some("kernel"), source: wgpu::util::make_spirv(KERNEL_SPV) });
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some(ENTRY_POINT),
-            layout: None,
-            module: &module,
-            entry_point: Some(ENTRY_POINT),
-            compilation_options: Default::default(),
-            cache: None,
-        });
+        let bind_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("scene"), entries: &bind_group_layout_entries() });
+        let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label: Some("scene"), bind_group_layouts: &[Some(&bind_layout)], immediate_size: 0 });
+        let pipeline = |entry: &str| {
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: Some(&layout),
+                module: &module,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        };
+        let render_pipeline = pipeline(RENDER_ENTRY);
+        let cast_pipeline = pipeline(CAST_ENTRY);
         if let Some(e) = pollster::block_on(scope.pop()) {
             bail!("adapter {:?} rejected the kernel: {e}", info.name);
         }
-        Ok(Self { device, queue, pipeline, adapter: info })
+        Ok(Self { device, queue, render_pipeline, cast_pipeline, bind_layout, adapter: info })
     }
 
     fn storage(&self, label: &str, data: &[u8]) -> wgpu::Buffer {
         self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents: data, usage: wgpu::BufferUsages::STORAGE })
     }
 
-    pub fn render(&self, c: &Compiled, s: &RenderSettings, progress: Progress) -> Result<Rendered> {
-        s.check()?;
-        let pixels = s.width as u64 * s.height as u64;
+    /// A read-write buffer of `size` bytes that can be copied out; at least 16 bytes, since
+    /// storage buffers may not be empty.
+    fn output(&self, label: &str, size: u64) -> wgpu::Buffer {
+        self.device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size: size.max(16), usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC, mapped_at_creation: false })
+    }
+
+    fn check_size(&self, what: &str, bytes: usize) -> Result<()> {
         let limit = self.device.limits().max_storage_buffer_binding_size as u64;
-        for (what, bytes) in [("triangles", std::mem::size_of_val(&c.scene.triangles[..])), ("k-d nodes", std::mem::size_of_val(&c.tree.nodes[..])), ("leaf indices", std::mem::size_of_val(&c.tree.indices[..])), ("image", pixels as usize * 16)] {
-            if bytes as u64 > limit {
-                bail!("{what}: {bytes} bytes exceed this adapter's storage-buffer limit of {limit} bytes");
-            }
+        if bytes as u64 > limit {
+            bail!("{what}: {bytes} bytes exceed this adapter's storage-buffer limit of {limit} bytes");
         }
-        let device = &self.device;
-        let params_buffer = device.create_buffer(&wgpu::BufferDescriptor {
+        Ok(())
+    }
+
+    fn upload_scene(&self, c: &Compiled) -> Result<SceneBuffers> {
+        self.check_size("triangles", std::mem::size_of_val(&c.scene.triangles[..]))?;
+        self.check_size("k-d nodes", std::mem::size_of_val(&c.tree.nodes[..]))?;
+        self.check_size("leaf indices", std::mem::size_of_val(&c.tree.indices[..]))?;
+        let params = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("params"),
             size: std::mem::size_of::<RenderParams>() as u64,
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let nodes = self.storage("nodes", bytemuck::cast_slice(&c.tree.nodes));
-        // Storage buffers may not be empty: a tree always has a node, the rest get a zero word.
-        let indices = self.storage("indices", bytemuck::cast_slice(if c.tree.indices.is_empty() { &[0u32][..] } else { &c.tree.indices }));
-        let triangles = self.storage("triangles", bytemuck::cast_slice(&c.scene.triangles));
-        let info = self.storage("info", bytemuck::cast_slice(&c.scene.info));
-        let materials = self.storage("materials", bytemuck::cast_slice(&c.scene.materials));
-        let lights = self.storage("lights", bytemuck::cast_slice(&c.lights));
-        let accum_bytes = pixels * std::mem::size_of::<Vec4>() as u64;
-        let accum = device.create_buffer(&wgpu::BufferDescriptor { label: Some("accum"), size: accum_bytes, usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC, mapped_at_creation: false });
-        let primary = device.create_buffer(&wgpu::BufferDescriptor { label: Some("primary"), size: pixels * 4, usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC, mapped_at_creation: false });
-        let layout = self.pipeline.get_bind_group_layout(0);
-        let buffers = [&params_buffer, &nodes, &indices, &triangles, &info, &materials, &lights, &accum, &primary];
-        let entries: Vec<wgpu::BindGroupEntry> = buffers.iter().enumerate().map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() }).collect();
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some("scene"), layout: &layout, entries: &entries });
+        Ok(SceneBuffers {
+            params,
+            nodes: self.storage("nodes", bytemuck::cast_slice(&c.tree.nodes)),
+            // Storage buffers may not be empty: a tree always has a node, the rest get a zero word.
+            indices: self.storage("indices", bytemuck::cast_slice(if c.tree.indices.is_empty() { &[0u32][..] } else { &c.tree.indices })),
+            triangles: self.storage("triangles", bytemuck::cast_slice(&c.scene.triangles)),
+            info: self.storage("info", bytemuck::cast_slice(&c.scene.info)),
+            materials: self.storage("materials", bytemuck::cast_slice(&c.scene.materials)),
+            lights: self.storage("lights", bytemuck::cast_slice(&c.lights)),
+        })
+    }
 
-        let per_pass = ((PATHS_PER_PASS / pixels.max(1)) as u32).clamp(1, s.spp);
+    /// The bind group of all bindings: the scene's, then the outputs and ray buffers.
+    fn bind(&self, s: &SceneBuffers, accum: &wgpu::Buffer, primary: &wgpu::Buffer, rays: &wgpu::Buffer, results: &wgpu::Buffer) -> wgpu::BindGroup {
+        let buffers = [&s.params, &s.nodes, &s.indices, &s.triangles, &s.info, &s.materials, &s.lights, accum, primary, rays, results];
+        debug_assert_eq!(buffers.len() as u32, binding::COUNT);
+        let entries: Vec<wgpu::BindGroupEntry> = buffers.iter().enumerate().map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() }).collect();
+        self.device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some("scene"), layout: &self.bind_layout, entries: &entries })
+    }
+
+    fn dispatch(&self, pipeline: &wgpu::ComputePipeline, group: &wgpu::BindGroup, groups: (u32, u32)) -> Result<()> {
+        let mut encoder = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("pass") });
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("compute"), timestamp_writes: None });
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, group, &[]);
+            pass.dispatch_workgroups(groups.0, groups.1, 1);
+        }
+        self.queue.submit(Some(encoder.finish()));
+        self.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| anyhow!("GPU pass failed: {e}"))?;
+        Ok(())
+    }
+
+    pub fn render(&self, c: &Compiled, s: &RenderSettings, progress: Progress) -> Result<Rendered> {
+        s.check()?;
+        let pixels = s.width as u64 * s.height as u64;
+        self.check_size("image", pixels as usize * 16)?;
+        let scene = self.upload_scene(c)?;
+        let accum_bytes = pixels * std::mem::size_of::<Vec4>() as u64;
+        let accum = self.output("accum", accum_bytes);
+        let primary = self.output("primary", pixels * 4);
+        let (rays, results) = (self.output("rays (unused)", 0), self.output("results (unused)", 0));
+        let group = self.bind(&scene, &accum, &primary, &rays, &results);
+
+        let per_pass = ((PATHS_PER_PASS / pixels.max(1)) as u32).clamp(1, s.spp.min(MAX_SAMPLES_PER_INVOCATION));
         let total = pixels * s.spp as u64;
         let mut start = 0;
         while start < s.spp {
             let count = per_pass.min(s.spp - start);
             let params = c.params(s, start, count)?;
-            self.queue.write_buffer(&params_buffer, 0, bytemuck::bytes_of(&params));
-            let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("pass") });
-            {
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("render"), timestamp_writes: None });
-                pass.set_pipeline(&self.pipeline);
-                pass.set_bind_group(0, &bind_group, &[]);
-                pass.dispatch_workgroups(s.width.div_ceil(GROUP), s.height.div_ceil(GROUP), 1);
-            }
-            self.queue.submit(Some(encoder.finish()));
-            device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| anyhow!("GPU pass failed: {e}"))?;
+            self.queue.write_buffer(&scene.params, 0, bytemuck::bytes_of(&params));
+            self.dispatch(&self.render_pipeline, &group, (s.width.div_ceil(GROUP), s.height.div_ceil(GROUP)))?;
             start += count;
             progress(pixels * start as u64, total);
         }
         let sum: Vec<Vec4> = self.read_back(&accum, accum_bytes)?;
         let primary: Vec<u32> = self.read_back(&primary, pixels * 4)?;
         Ok(Rendered { width: s.width, height: s.height, spp: s.spp, sum, primary })
+    }
+
+    /// Casts a batch of rays through the scene's tree (no shading); one result per ray.
+    pub fn cast(&self, c: &Compiled, rays: &[RayQuery]) -> Result<Vec<RayResult>> {
+        if rays.is_empty() {
+            return Ok(Vec::new());
+        }
+        let bytes = std::mem::size_of_val(rays);
+        self.check_size("rays", bytes)?;
+        let scene = self.upload_scene(c)?;
+        self.queue.write_buffer(&scene.params, 0, bytemuck::bytes_of(&c.bounds_params()));
+        let ray_buffer = self.storage("rays", bytemuck::cast_slice(rays));
+        let result_bytes = std::mem::size_of_val(rays) as u64 / std::mem::size_of::<RayQuery>() as u64 * std::mem::size_of::<RayResult>() as u64;
+        let results = self.output("results", result_bytes);
+        let (accum, primary) = (self.output("accum (unused)", 0), self.output("primary (unused)", 0));
+        let group = self.bind(&scene, &accum, &primary, &ray_buffer, &results);
+        let groups = rays.len().div_ceil(CAST_GROUP as usize);
+        if groups > MAX_GROUPS_X as usize {
+            bail!("{} rays in one batch: at most {} are supported", rays.len(), MAX_GROUPS_X * CAST_GROUP);
+        }
+        self.dispatch(&self.cast_pipeline, &group, (groups as u32, 1))?;
+        self.read_back(&results, result_bytes)
     }
 
     fn read_back<T: bytemuck::Pod>(&self, src: &wgpu::Buffer, size: u64) -> Result<Vec<T>> {

@@ -87,6 +87,16 @@ impl Compiled {
         })
     }
 
+    /// Parameters that carry only what ray casting needs (scene bounds, light count).
+    pub fn bounds_params(&self) -> RenderParams {
+        RenderParams {
+            bounds_min: self.tree.bounds_min.extend(0.0),
+            bounds_max: self.tree.bounds_max.extend(0.0),
+            light_count: self.scene.lights.len() as u32,
+            ..Default::default()
+        }
+    }
+
     pub fn view<'a>(&'a self, params: &RenderParams) -> SceneView<'a> {
         SceneView::new(params, &self.tree.nodes, &self.tree.indices, &self.scene.triangles, &self.scene.info, &self.scene.materials, &self.lights)
     }

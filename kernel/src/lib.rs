@@ -1,9 +1,13 @@
 //! rust-gpu entry points. Each one only unpacks its invocation id and buffers and calls `shared`.
+//!
+//! Every entry point declares the same bindings of group 0 (the host creates one explicit layout
+//! for all of them); an entry point that does not touch a buffer still names it.
 #![no_std]
 
 use shared::glam::{UVec3, Vec4};
 use shared::integrator::render_pixel;
-use shared::layout::{KdNode, Light, Material, RenderParams, Triangle, TriangleInfo};
+use shared::layout::{KdNode, Light, Material, RayQuery, RayResult, RenderParams, Triangle, TriangleInfo};
+use shared::raycast::cast_ray;
 use shared::scene::SceneView;
 use spirv_std::spirv;
 
@@ -32,4 +36,27 @@ pub fn render_pass(
     if params.sample_start == 0 {
         primary[pixel] = pass.primary;
     }
+}
+
+/// One invocation per ray of a batch: the closest (or any) hit and the traversal's work.
+#[spirv(compute(threads(64, 1, 1)))]
+#[allow(clippy::too_many_arguments)]
+pub fn cast_rays(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(uniform, descriptor_set = 0, binding = 0)] params: &RenderParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] nodes: &[KdNode],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] indices: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] triangles: &[Triangle],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] info: &[TriangleInfo],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] materials: &[Material],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] lights: &[Light],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 9)] rays: &[RayQuery],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 10)] results: &mut [RayResult],
+) {
+    let i = id.x as usize;
+    if i >= rays.len() {
+        return;
+    }
+    let scene = SceneView::new(params, nodes, indices, triangles, info, materials, lights);
+    results[i] = cast_ray(&scene, &rays[i]);
 }

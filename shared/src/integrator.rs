@@ -6,7 +6,7 @@
 //! of at most two segments after the camera: Mitsuba's `max_depth = max_bounces + 2`).
 use crate::camera::primary_direction;
 use crate::glam::{Vec3, Vec4};
-use crate::kdtree::{intersect, occluded};
+use crate::kdtree::{intersect, occluded, Hit};
 use crate::layout::{RenderParams, NO_HIT, NO_LIGHT};
 use crate::material::{emitted, eval, sample as sample_bsdf};
 use crate::numerics::{offset_ray_origin, sanitize_radiance};
@@ -30,98 +30,128 @@ pub struct PathSample {
     pub primary: u32,
 }
 
+/// The state a path carries from vertex to vertex.
+struct Path {
+    origin: Vec3,
+    dir: Vec3,
+    /// Throughput: the product of BSDF weights so far.
+    beta: Vec3,
+    radiance: Vec3,
+    /// Solid-angle pdf of the BSDF sample that produced `dir`; unused for camera rays.
+    bsdf_pdf: f32,
+    /// Indirect bounces taken: 0 while the camera ray is traced.
+    bounce: u32,
+}
+
 /// Traces sample `sample` of pixel (px, py).
+///
+/// The loop has a single exit (`alive`) and the vertex work lives in `shade_vertex`, which
+/// returns early but contains no loop: a `break` out of this loop from inside inlined
+/// traversal code was miscompiled for whole subgroups on lavapipe (Mesa 22.3, LLVM 15), which
+/// lost every lane's sample when one lane left the loop that way.
 pub fn trace_sample(scene: &SceneView, p: &RenderParams, px: u32, py: u32, sample: u32) -> PathSample {
     let mut rng = Sampler::new(py * p.width + px, sample, p.seed);
     let jx = rng.next_1d();
     let jy = rng.next_1d();
-    let mut dir = primary_direction(p, px as f32 + jx, py as f32 + jy);
-    let mut origin = xyz(p.eye);
-    let mut beta = Vec3::ONE;
-    let mut radiance = Vec3::ZERO;
-    // Solid-angle pdf of the BSDF sample that produced `dir`; unused for camera rays.
-    let mut bsdf_pdf = 0.0f32;
+    let mut path = Path {
+        origin: xyz(p.eye),
+        dir: primary_direction(p, px as f32 + jx, py as f32 + jy),
+        beta: Vec3::ONE,
+        radiance: Vec3::ZERO,
+        bsdf_pdf: 0.0,
+        bounce: 0,
+    };
     let mut primary = NO_HIT;
-    let mut bounce = 0u32;
-    loop {
-        let hit = intersect(scene, origin, dir, f32::MAX);
-        if bounce == 0 {
+    let mut alive = true;
+    while alive {
+        let hit = intersect(scene, path.origin, path.dir, f32::MAX);
+        if path.bounce == 0 {
             primary = hit.triangle;
         }
-        if !hit.is_hit() {
-            radiance += beta * xyz(p.environment);
-            break;
+        if hit.is_hit() {
+            alive = shade_vertex(scene, p, &mut path, &mut rng, &hit);
+        } else {
+            path.radiance += path.beta * xyz(p.environment);
+            alive = false;
         }
-        let tri = &scene.triangles[hit.triangle as usize];
-        let info = scene.info[hit.triangle as usize];
-        let mat = &scene.materials[info.material as usize];
-        let ng = geometric_normal(tri);
-        let n = normalize(ng);
-        let pos = hit_point(tri, &TriangleHit { t: hit.t, u: hit.u, v: hit.v, w: hit.w });
-
-        let le = emitted(mat, ng, dir);
-        if (le.x > 0.0) | (le.y > 0.0) | (le.z > 0.0) {
-            let mut weight = 1.0;
-            if (bounce > 0) & (info.light != NO_LIGHT) {
-                let light = scene.lights[info.light as usize];
-                let dist2 = hit.t * hit.t * length_squared(dir);
-                let cos_l = dot(n, normalize(dir)).abs();
-                let light_pdf = light.pmf * dist2 / (cos_l * light.area);
-                weight = power_heuristic(bsdf_pdf, light_pdf);
-            }
-            radiance += beta * le * weight;
-        }
-        if bounce == p.max_bounces + 1 {
-            break;
-        }
-
-        // Shade on the side the ray arrived from: diffuse is two-sided.
-        let ns = if dot(ng, dir) < 0.0 { n } else { -n };
-        let spawn = offset_ray_origin(pos, ns);
-
-        if scene.light_count > 0 {
-            let u_select = rng.next_1d();
-            let u1 = rng.next_1d();
-            let u2 = rng.next_1d();
-            let light = scene.lights[select_light(scene.lights, scene.light_count, u_select) as usize];
-            let ltri = &scene.triangles[light.triangle as usize];
-            let (b0, b1, b2) = uniform_triangle(u1, u2);
-            let q = xyz(ltri.v0) * b0 + xyz(ltri.v1) * b1 + xyz(ltri.v2) * b2;
-            let nl = normalize(geometric_normal(ltri));
-            let to_light = q - pos;
-            let dist2 = length_squared(to_light);
-            let wi = to_light * (1.0 / dist2.sqrt());
-            let cos_l = -dot(nl, wi);
-            let (f, pdf_bsdf) = eval(mat, ns, wi);
-            if (cos_l > 0.0) & (pdf_bsdf > 0.0) & (dist2 > 0.0) {
-                let light_pdf = light.pmf * dist2 / (cos_l * light.area);
-                let target = offset_ray_origin(q, nl);
-                if !occluded(scene, spawn, target - spawn, 1.0 - SHADOW_EPSILON) {
-                    let lmat = &scene.materials[scene.info[light.triangle as usize].material as usize];
-                    let weight = power_heuristic(light_pdf, pdf_bsdf);
-                    radiance += beta * f * xyz(lmat.emission) * (dot(ns, wi) * weight / light_pdf);
-                }
-            }
-        }
-
-        let bs = sample_bsdf(mat, ns, rng.next_1d(), rng.next_1d());
-        if bs.pdf <= 0.0 {
-            break;
-        }
-        beta *= bs.weight;
-        bsdf_pdf = bs.pdf;
-        bounce += 1;
-        if bounce >= p.rr_start {
-            let survive = max_component(beta).min(RR_MAX_SURVIVAL);
-            if rng.next_1d() >= survive {
-                break;
-            }
-            beta = beta / survive;
-        }
-        origin = spawn;
-        dir = bs.wi;
     }
-    PathSample { radiance, primary }
+    PathSample { radiance: path.radiance, primary }
+}
+
+/// One path vertex: emission (MIS-weighted against light sampling), next-event estimation, then
+/// the BSDF sample that continues the path. Returns whether the path goes on.
+#[inline]
+fn shade_vertex(scene: &SceneView, p: &RenderParams, path: &mut Path, rng: &mut Sampler, hit: &Hit) -> bool {
+    let dir = path.dir;
+    let tri = &scene.triangles[hit.triangle as usize];
+    let info = scene.info[hit.triangle as usize];
+    let mat = &scene.materials[info.material as usize];
+    let ng = geometric_normal(tri);
+    let n = normalize(ng);
+    let pos = hit_point(tri, &TriangleHit { t: hit.t, u: hit.u, v: hit.v, w: hit.w });
+
+    let le = emitted(mat, ng, dir);
+    if (le.x > 0.0) | (le.y > 0.0) | (le.z > 0.0) {
+        let mut weight = 1.0;
+        if (path.bounce > 0) & (info.light != NO_LIGHT) {
+            let light = scene.lights[info.light as usize];
+            let dist2 = hit.t * hit.t * length_squared(dir);
+            let cos_l = dot(n, normalize(dir)).abs();
+            let light_pdf = light.pmf * dist2 / (cos_l * light.area);
+            weight = power_heuristic(path.bsdf_pdf, light_pdf);
+        }
+        path.radiance += path.beta * le * weight;
+    }
+    if path.bounce == p.max_bounces + 1 {
+        return false;
+    }
+
+    // Shade on the side the ray arrived from: diffuse is two-sided.
+    let ns = if dot(ng, dir) < 0.0 { n } else { -n };
+    let spawn = offset_ray_origin(pos, ns);
+
+    if scene.light_count > 0 {
+        let u_select = rng.next_1d();
+        let u1 = rng.next_1d();
+        let u2 = rng.next_1d();
+        let light = scene.lights[select_light(scene.lights, scene.light_count, u_select) as usize];
+        let ltri = &scene.triangles[light.triangle as usize];
+        let (b0, b1, b2) = uniform_triangle(u1, u2);
+        let q = xyz(ltri.v0) * b0 + xyz(ltri.v1) * b1 + xyz(ltri.v2) * b2;
+        let nl = normalize(geometric_normal(ltri));
+        let to_light = q - pos;
+        let dist2 = length_squared(to_light);
+        let wi = to_light * (1.0 / dist2.sqrt());
+        let cos_l = -dot(nl, wi);
+        let (f, pdf_bsdf) = eval(mat, ns, wi);
+        if (cos_l > 0.0) & (pdf_bsdf > 0.0) & (dist2 > 0.0) {
+            let light_pdf = light.pmf * dist2 / (cos_l * light.area);
+            let target = offset_ray_origin(q, nl);
+            if !occluded(scene, spawn, target - spawn, 1.0 - SHADOW_EPSILON) {
+                let lmat = &scene.materials[scene.info[light.triangle as usize].material as usize];
+                let weight = power_heuristic(light_pdf, pdf_bsdf);
+                path.radiance += path.beta * f * xyz(lmat.emission) * (dot(ns, wi) * weight / light_pdf);
+            }
+        }
+    }
+
+    let bs = sample_bsdf(mat, ns, rng.next_1d(), rng.next_1d());
+    if bs.pdf <= 0.0 {
+        return false;
+    }
+    path.beta *= bs.weight;
+    path.bsdf_pdf = bs.pdf;
+    path.bounce += 1;
+    if path.bounce >= p.rr_start {
+        let survive = max_component(path.beta).min(RR_MAX_SURVIVAL);
+        if rng.next_1d() >= survive {
+            return false;
+        }
+        path.beta = path.beta / survive;
+    }
+    path.origin = spawn;
+    path.dir = bs.wi;
+    true
 }
 
 /// A pixel's running sum after one pass: `xyz` radiance, `w` the number of samples that were

@@ -29,12 +29,15 @@ pub struct Hit {
     pub u: f32,
     pub v: f32,
     pub w: f32,
+    /// Traversal statistics: tree nodes visited and triangles tested for this ray.
+    pub nodes: u32,
+    pub tests: u32,
 }
 
 impl Hit {
     #[inline]
     pub fn miss(t_max: f32) -> Self {
-        Self { t: t_max, triangle: NO_HIT, u: 0.0, v: 0.0, w: 0.0 }
+        Self { t: t_max, triangle: NO_HIT, u: 0.0, v: 0.0, w: 0.0, nodes: 0, tests: 0 }
     }
     #[inline]
     pub fn is_hit(&self) -> bool {
@@ -124,7 +127,14 @@ pub fn intersect(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32) -> Hit 
 /// Whether anything lies along the ray with t in (0, t_max).
 #[inline]
 pub fn occluded(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
-    traverse(scene, origin, dir, t_max, true).is_hit()
+    occluded_hit(scene, origin, dir, t_max).is_hit()
+}
+
+/// The first hit found with t in (0, t_max), not necessarily the closest: a shadow-ray query
+/// that also reports the traversal's work.
+#[inline]
+pub fn occluded_hit(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32) -> Hit {
+    traverse(scene, origin, dir, t_max, true)
 }
 
 fn traverse(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32, any_hit: bool) -> Hit {
@@ -143,7 +153,10 @@ fn traverse(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32, any_hit: boo
     let mut stack = [StackEntry { node: 0, t_min: 0.0, t_max: 0.0 }; STACK_SIZE];
     let mut sp = 0usize;
     let mut node = 0u32;
+    let mut nodes = 0u32;
+    let mut tests = 0u32;
     loop {
+        nodes += 1;
         let n = scene.nodes[node as usize];
         if !n.is_leaf() {
             let ax = n.axis();
@@ -183,8 +196,9 @@ fn traverse(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32, any_hit: boo
         let mut i = 0;
         while i < count {
             let id = scene.indices[(start + i) as usize];
+            tests += 1;
             if let Some(h) = shear.intersect(&scene.triangles[id as usize], 0.0, best.t) {
-                best = Hit { t: h.t, triangle: id, u: h.u, v: h.v, w: h.w };
+                best = Hit { t: h.t, triangle: id, u: h.u, v: h.v, w: h.w, nodes, tests };
                 if any_hit {
                     return best;
                 }
@@ -204,6 +218,8 @@ fn traverse(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32, any_hit: boo
             }
         }
         if !found {
+            best.nodes = nodes;
+            best.tests = tests;
             return best;
         }
     }
@@ -221,9 +237,10 @@ pub fn intersect_brute_force(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: 
     let mut id = 0;
     while id < scene.triangles.len() {
         if let Some(h) = shear.intersect(&scene.triangles[id], 0.0, best.t) {
-            best = Hit { t: h.t, triangle: id as u32, u: h.u, v: h.v, w: h.w };
+            best = Hit { t: h.t, triangle: id as u32, u: h.u, v: h.v, w: h.w, nodes: 0, tests: 0 };
         }
         id += 1;
     }
+    best.tests = scene.triangles.len() as u32;
     best
 }

@@ -148,3 +148,36 @@ pub struct RenderParams {
     pub _pad0: u32,
     pub _pad1: u32,
 }
+
+/// `RayQuery::flags`: stop at the first hit found (a shadow or ambient-occlusion ray).
+pub const RAY_ANY_HIT: u32 = 1;
+
+/// One ray of a batch cast without shading: the ray-casting kernel, the CPU ≡ GPU traversal
+/// check and the rays/s benchmarks read these.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(not(target_arch = "spirv"), derive(bytemuck::Pod, bytemuck::Zeroable))]
+pub struct RayQuery {
+    /// Origin in `xyz`; `w` unused.
+    pub origin: Vec4,
+    /// Direction in `xyz` (need not be unit); `w` unused.
+    pub dir: Vec4,
+    /// Hits count only with t in (0, t_max), t in units of `dir`.
+    pub t_max: f32,
+    pub flags: u32,
+    pub _pad: [u32; 2],
+}
+
+/// What casting a `RayQuery` found, with the traversal's work.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(not(target_arch = "spirv"), derive(bytemuck::Pod, bytemuck::Zeroable))]
+pub struct RayResult {
+    /// Hit distance, or the query's `t_max` on a miss.
+    pub t: f32,
+    /// Triangle hit, or `NO_HIT`.
+    pub triangle: u32,
+    /// k-d nodes visited and triangles tested.
+    pub nodes: u32,
+    pub tests: u32,
+}

@@ -18,6 +18,7 @@ pub mod kdtree;
 pub mod layout;
 pub mod material;
 pub mod numerics;
+pub mod raycast;
 pub mod rng;
 pub mod sampling;
 pub mod scene;

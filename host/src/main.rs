@@ -26,6 +26,76 @@ enum Command {
     Verify(VerifyArgs),
     /// List the GPU adapters wgpu can use.
     Adapters,
+    /// Build a scene's k-d tree and report its statistics (and check it with --validate).
+    Tree(TreeArgs),
+}
+
+#[derive(Args)]
+struct TreeArgs {
+    scene: PathBuf,
+    #[command(flatten)]
+    build: BuildArgs,
+    /// Check every invariant of the tree (slow on big scenes).
+    #[arg(long)]
+    validate: bool,
+    /// Print one JSON line instead of text.
+    #[arg(long)]
+    json: bool,
+}
+
+/// k-d tree build settings; defaults in `kdbuild::BuildSettings`.
+#[derive(Args, Clone)]
+struct BuildArgs {
+    /// Tree builder.
+    #[arg(long, value_enum)]
+    builder: Option<kdbuild::Builder>,
+    /// SAH cost of a traversal step (K_T).
+    #[arg(long)]
+    traversal_cost: Option<f32>,
+    /// SAH cost of a triangle test (K_I).
+    #[arg(long)]
+    intersection_cost: Option<f32>,
+    /// SAH factor λ for splits with an empty side.
+    #[arg(long)]
+    empty_factor: Option<f32>,
+    /// Maximum tree depth (0: 8 + 1.3·log2 N).
+    #[arg(long)]
+    max_depth: Option<u32>,
+    /// Nodes with at most this many triangles become leaves.
+    #[arg(long)]
+    leaf_size: Option<u32>,
+    /// Splits costlier than a leaf allowed on one path.
+    #[arg(long)]
+    bad_refines: Option<u32>,
+}
+
+impl BuildArgs {
+    fn settings(&self) -> Result<kdbuild::BuildSettings> {
+        let mut s = kdbuild::BuildSettings::default();
+        if let Some(b) = self.builder {
+            s.builder = b;
+        }
+        if let Some(x) = self.traversal_cost {
+            s.traversal_cost = x;
+        }
+        if let Some(x) = self.intersection_cost {
+            s.intersection_cost = x;
+        }
+        if let Some(x) = self.empty_factor {
+            s.empty_factor = x;
+        }
+        if let Some(x) = self.max_depth {
+            s.max_depth = x;
+        }
+        if let Some(x) = self.leaf_size {
+            s.leaf_size = x;
+        }
+        if let Some(x) = self.bad_refines {
+            s.bad_refines = x;
+        }
+        s.check()?;
+        Ok(s)
+    }
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -215,11 +285,41 @@ fn verify(v: VerifyArgs) -> Result<ExitCode> {
     Ok(if a.pass { ExitCode::SUCCESS } else { ExitCode::from(1) })
 }
 
+fn tree(t: TreeArgs) -> Result<ExitCode> {
+    let settings = t.build.settings()?;
+    let loaded = kdtrace::load(&t.scene, settings)?;
+    let c = &loaded.compiled;
+    let st = kdbuild::stats(&c.tree, c.scene.triangles.len(), &settings);
+    let valid = if t.validate { Some(kdbuild::validate(&c.tree, &c.scene.triangles)) } else { None };
+    if t.json {
+        let mut line = serde_json::to_value(&st)?;
+        let extra = json!({
+            "scene": t.scene, "builder": settings.builder, "settings": settings, "threads": rayon::current_num_threads(),
+            "load_s": loaded.load_s, "build_s": loaded.build_s,
+            "mtris_per_s": c.scene.triangles.len() as f64 / loaded.build_s / 1e6,
+            "valid": valid.as_ref().map(|v| v.is_ok()), "invalid_reason": valid.as_ref().and_then(|v| v.as_ref().err()),
+        });
+        line.as_object_mut().unwrap().extend(extra.as_object().unwrap().clone());
+        println!("{line}");
+    } else {
+        println!(
+            "{}: {} triangles, {:?} tree: {} nodes, {} leaves ({} empty), depth {}, {} refs ({:.2} per non-empty leaf), SAH cost {:.2}; built in {:.3} s on {} threads ({:.2} Mtris/s)",
+            t.scene.display(), st.triangles, settings.builder, st.nodes, st.leaves, st.empty_leaves, st.max_depth, st.total_refs, st.mean_leaf_refs, st.sah_cost,
+            loaded.build_s, rayon::current_num_threads(), st.triangles as f64 / loaded.build_s / 1e6
+        );
+        if let Some(v) = &valid {
+            println!("{}", match v { Ok(()) => "valid".to_string(), Err(e) => format!("INVALID: {e}") });
+        }
+    }
+    Ok(if valid.is_some_and(|v| v.is_err()) { ExitCode::from(1) } else { ExitCode::SUCCESS })
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(r) => render(r),
         Command::Verify(v) => verify(v),
+        Command::Tree(t) => tree(t),
         Command::Adapters => {
             for a in gpu::adapters() {
                 println!("{} ({:?}, {:?}, driver {} {})", a.name, a.device_type, a.backend, a.driver, a.driver_info);

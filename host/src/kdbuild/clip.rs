@@ -1,0 +1,238 @@
+//! Perfect splits: the part of a triangle inside a voxel, and its bounding box.
+//!
+//! Havran's thesis (2000, §4.5) and Wald & Havran 2006 (§4.3, "perfect splits"): a triangle that
+//! straddles a split plane is clipped to each child's voxel and its events are made from the
+//! clipped polygon's bounding box, not from the triangle's. The box is smaller, so fewer
+//! triangles are referenced by leaves they only touch with their bounding box.
+//!
+//! Clipping runs in f64 (Sutherland–Hodgman against the six planes of the closed box) and the
+//! box is rounded outward to f32 and then clamped to the voxel, so it always contains the part
+//! of the triangle inside the voxel: a leaf never loses a triangle it really overlaps.
+use shared::layout::Triangle;
+use shared::numerics::{next_float_down, next_float_up};
+
+/// An axis-aligned box in f32, closed: `lo <= hi` on every axis.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Aabb {
+    pub lo: [f32; 3],
+    pub hi: [f32; 3],
+}
+
+impl Aabb {
+    pub fn extent(&self, k: usize) -> f64 {
+        self.hi[k] as f64 - self.lo[k] as f64
+    }
+
+    /// Surface area, in f64 so that thin voxels of huge scenes keep their ratios.
+    pub fn area(&self) -> f64 {
+        let (x, y, z) = (self.extent(0), self.extent(1), self.extent(2));
+        2.0 * (x * y + y * z + z * x)
+    }
+
+    /// The two halves of a split at `pos` on axis `k`: (below, above).
+    pub fn split(&self, k: usize, pos: f32) -> (Aabb, Aabb) {
+        let (mut below, mut above) = (*self, *self);
+        below.hi[k] = pos;
+        above.lo[k] = pos;
+        (below, above)
+    }
+}
+
+/// A triangle's vertices in f64.
+pub type Tri64 = [[f64; 3]; 3];
+
+pub fn to_f64(t: &Triangle) -> Tri64 {
+    [[t.v0.x as f64, t.v0.y as f64, t.v0.z as f64], [t.v1.x as f64, t.v1.y as f64, t.v1.z as f64], [t.v2.x as f64, t.v2.y as f64, t.v2.z as f64]]
+}
+
+/// Room for the clipped polygon: a convex triangle gains at most one vertex per plane (9 in
+/// all); rounding can make a near-degenerate polygon slightly non-convex, so leave spare room
+/// and fall back to no clipping (still conservative) if even that is exceeded.
+const MAX_VERTICES: usize = 16;
+
+/// A convex polygon of at most `MAX_VERTICES` vertices.
+#[derive(Clone, Copy)]
+pub struct Polygon {
+    pub v: [[f64; 3]; MAX_VERTICES],
+    pub len: usize,
+}
+
+impl Polygon {
+    pub fn vertices(&self) -> &[[f64; 3]] {
+        &self.v[..self.len]
+    }
+
+    /// (min, max) of the vertices on axis `k`; only for a non-empty polygon.
+    pub fn range(&self, k: usize) -> (f64, f64) {
+        self.vertices().iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lo.min(p[k]), hi.max(p[k])))
+    }
+}
+
+/// Keeps the part of `input` with `x[k] >= bound` (`above`) or `x[k] <= bound`. Returns false if
+/// the output would overflow.
+fn clip_plane(input: &Polygon, out: &mut Polygon, k: usize, bound: f64, above: bool) -> bool {
+    out.len = 0;
+    let n = input.len;
+    let inside = |p: &[f64; 3]| if above { p[k] >= bound } else { p[k] <= bound };
+    for i in 0..n {
+        let a = input.v[i];
+        let b = input.v[(i + 1) % n];
+        let (ia, ib) = (inside(&a), inside(&b));
+        if ia {
+            if out.len == MAX_VERTICES {
+                return false;
+            }
+            out.v[out.len] = a;
+            out.len += 1;
+        }
+        if ia != ib {
+            let t = (bound - a[k]) / (b[k] - a[k]);
+            let mut p = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]), a[2] + t * (b[2] - a[2])];
+            // The crossing lies on the plane by construction; make it exact.
+            p[k] = bound;
+            if out.len == MAX_VERTICES {
+                return false;
+            }
+            out.v[out.len] = p;
+            out.len += 1;
+        }
+    }
+    true
+}
+
+/// The part of the triangle inside the closed box, or `None` if clipping overflowed (never for
+/// a proper triangle; the caller then falls back to the unclipped box). An empty polygon
+/// (`len == 0`) means the triangle misses the box.
+pub fn clip_polygon(t: &Tri64, b: &Aabb) -> Option<Polygon> {
+    let mut cur = Polygon { v: [[0.0; 3]; MAX_VERTICES], len: 3 };
+    cur.v[..3].copy_from_slice(t);
+    let mut next = cur;
+    for k in 0..3 {
+        for (bound, above) in [(b.lo[k] as f64, true), (b.hi[k] as f64, false)] {
+            if !clip_plane(&cur, &mut next, k, bound, above) {
+                return None;
+            }
+            std::mem::swap(&mut cur, &mut next);
+            if cur.len == 0 {
+                return Some(cur);
+            }
+        }
+    }
+    Some(cur)
+}
+
+/// Largest f32 not above `x`.
+fn round_down(x: f64) -> f32 {
+    let f = x as f32;
+    if f as f64 > x {
+        next_float_down(f)
+    } else {
+        f
+    }
+}
+
+/// Smallest f32 not below `x`.
+fn round_up(x: f64) -> f32 {
+    let f = x as f32;
+    if (f as f64) < x {
+        next_float_up(f)
+    } else {
+        f
+    }
+}
+
+/// The bounding box of the triangle's part inside `voxel`, rounded outward to f32 and clamped
+/// to the voxel; `None` when the triangle misses the voxel.
+pub fn clipped_box(t: &Tri64, voxel: &Aabb) -> Option<Aabb> {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in t {
+        for k in 0..3 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    let inside = (0..3).all(|k| lo[k] >= voxel.lo[k] as f64 && hi[k] <= voxel.hi[k] as f64);
+    if !inside {
+        if let Some(poly) = clip_polygon(t, voxel) {
+            if poly.len == 0 {
+                return None;
+            }
+            for k in 0..3 {
+                (lo[k], hi[k]) = poly.range(k);
+            }
+        }
+        // On overflow the triangle's own box stands in: larger, still conservative.
+    }
+    let mut out = Aabb { lo: [0.0; 3], hi: [0.0; 3] };
+    for k in 0..3 {
+        out.lo[k] = round_down(lo[k]).max(voxel.lo[k]);
+        out.hi[k] = round_up(hi[k]).min(voxel.hi[k]);
+        if out.lo[k] > out.hi[k] {
+            return None;
+        }
+    }
+    Some(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn unit() -> Aabb {
+        Aabb { lo: [0.0; 3], hi: [1.0; 3] }
+    }
+
+    #[test]
+    fn inside_triangle_keeps_its_box() {
+        let f = |x: f32| x as f64;
+        let t = [[f(0.1), f(0.2), f(0.3)], [f(0.9), f(0.2), f(0.3)], [f(0.5), f(0.8), f(0.3)]];
+        let b = clipped_box(&t, &unit()).unwrap();
+        assert_eq!(b.lo, [0.1, 0.2, 0.3]);
+        assert_eq!(b.hi, [0.9, 0.8, 0.3]);
+    }
+
+    #[test]
+    fn straddling_triangle_is_clipped_tighter_than_its_box() {
+        // A long sliver along x + y = 0.5 across the corner of the unit box: its own box covers
+        // the whole unit square, the part inside only the corner below that line.
+        let t = [[-1.0, 1.5, 0.5], [1.5, -1.0, 0.5], [1.5, -0.9, 0.5]];
+        let b = clipped_box(&t, &unit()).unwrap();
+        assert!(b.lo[0] == 0.0 && b.lo[1] == 0.0 && b.hi[0] < 0.6 && b.hi[1] < 0.6, "{b:?}");
+        assert_eq!((b.lo[2], b.hi[2]), (0.5, 0.5));
+    }
+
+    #[test]
+    fn missing_triangle_is_none() {
+        // Its box overlaps the voxel but the triangle passes beside the corner.
+        let t = [[1.2, -0.5, 0.5], [1.5, 0.5, 0.5], [-0.5, 1.5, 0.5]];
+        let (lo, hi) = ([0.0, 0.0, 0.0], [0.3, 0.3, 1.0]);
+        assert!(clipped_box(&t, &Aabb { lo, hi }).is_none());
+    }
+
+    #[test]
+    fn triangle_on_a_face_is_kept() {
+        let t = [[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        let b = clipped_box(&t, &Aabb { lo: [0.0, 0.2, 0.2], hi: [1.0, 0.4, 0.4] }).unwrap();
+        assert_eq!((b.lo[0], b.hi[0]), (0.0, 0.0));
+    }
+
+    #[test]
+    fn clipped_box_contains_the_exact_part() {
+        // Points of the triangle inside the voxel must lie in the clipped box.
+        let t = [[-0.31, 0.17, 0.4], [1.73, 0.49, 0.81], [0.22, 1.9, -0.6]];
+        let v = Aabb { lo: [0.1, 0.1, 0.1], hi: [0.9, 0.8, 0.7] };
+        let b = clipped_box(&t, &v).unwrap();
+        let n = 300;
+        for i in 0..=n {
+            for j in 0..=(n - i) {
+                let (u, w) = (i as f64 / n as f64, j as f64 / n as f64);
+                let p: Vec<f64> = (0..3).map(|k| t[0][k] * (1.0 - u - w) + t[1][k] * u + t[2][k] * w).collect();
+                let inside = (0..3).all(|k| p[k] >= v.lo[k] as f64 && p[k] <= v.hi[k] as f64);
+                if inside {
+                    assert!((0..3).all(|k| p[k] >= b.lo[k] as f64 && p[k] <= b.hi[k] as f64), "{p:?} outside {b:?}");
+                }
+            }
+        }
+    }
+}

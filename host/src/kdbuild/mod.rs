@@ -1,0 +1,112 @@
+//! k-d tree construction on the host. The node layout (`shared::layout::KdNode`: 8 bytes, the
+//! below child adjacent, leaves as runs of one index list) and the traversal
+//! (`shared::kdtree`) are shared with the GPU kernel; only building happens here.
+//!
+//! - `sah`: Wald & Havran's O(N log N) SAH build with perfect splits (the default).
+//! - `median`: spatial-median splits, a baseline for benchmarks.
+//! - `validate`: checks every invariant the traversal relies on.
+//! - `stats`: node and reference counts and the tree's SAH cost.
+mod clip;
+mod median;
+mod sah;
+mod stats;
+mod validate;
+
+pub use clip::Aabb;
+pub use stats::{stats, TreeStats};
+pub use validate::validate;
+
+use serde::{Deserialize, Serialize};
+use shared::glam::Vec3;
+use shared::layout::{KdNode, Triangle, KD_MAX_DEPTH};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Builder {
+    /// Surface area heuristic, Wald & Havran 2006 (the default).
+    Sah,
+    /// Spatial median of the longest axis.
+    Median,
+}
+
+/// How to build the tree. The defaults are Wald & Havran's costs and the seed's λ.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct BuildSettings {
+    pub builder: Builder,
+    /// K_T, the cost of one traversal step (default 15).
+    pub traversal_cost: f32,
+    /// K_I, the cost of one ray/triangle test (default 20).
+    pub intersection_cost: f32,
+    /// λ, the factor on the cost of a split with one empty side whose plane is not on the
+    /// voxel's boundary (default 0.8: favour cutting off empty space).
+    pub empty_factor: f32,
+    /// Maximum depth; 0 picks 8 + 1.3·log2(N) (pbrt-v3). Never beyond `KD_MAX_DEPTH`, the depth
+    /// the full traversal stack holds.
+    pub max_depth: u32,
+    /// Nodes with at most this many triangles become leaves without trying a split (default 1:
+    /// the SAH decides; the median builder uses at least 4).
+    pub leaf_size: u32,
+    /// Splits costlier than a leaf allowed on one path from the root (default 2, pbrt-v3's).
+    pub bad_refines: u32,
+}
+
+impl Default for BuildSettings {
+    fn default() -> Self {
+        Self { builder: Builder::Sah, traversal_cost: 15.0, intersection_cost: 20.0, empty_factor: 0.8, max_depth: 0, leaf_size: 1, bad_refines: 2 }
+    }
+}
+
+impl BuildSettings {
+    /// Rejects settings that would make the SAH meaningless or the tree unusable.
+    pub fn check(&self) -> anyhow::Result<()> {
+        let finite_positive = |x: f32| x.is_finite() && x > 0.0;
+        if !finite_positive(self.traversal_cost) || !finite_positive(self.intersection_cost) {
+            anyhow::bail!("traversal and intersection costs must be finite and positive (got {} and {})", self.traversal_cost, self.intersection_cost);
+        }
+        if !(self.empty_factor > 0.0 && self.empty_factor <= 1.0) {
+            anyhow::bail!("empty-space factor {} must be in (0, 1]", self.empty_factor);
+        }
+        if self.max_depth > KD_MAX_DEPTH {
+            anyhow::bail!("max depth {} exceeds {KD_MAX_DEPTH}, the deepest tree the traversal stack holds", self.max_depth);
+        }
+        Ok(())
+    }
+
+    /// The depth limit for `n` triangles.
+    pub fn depth_limit(&self, n: usize) -> u32 {
+        if self.max_depth == 0 {
+            default_max_depth(n)
+        } else {
+            self.max_depth.min(KD_MAX_DEPTH)
+        }
+    }
+}
+
+#[derive(Clone, Debug, Default)]
+pub struct KdTree {
+    pub nodes: Vec<KdNode>,
+    pub indices: Vec<u32>,
+    pub bounds_min: Vec3,
+    pub bounds_max: Vec3,
+    pub depth: u32,
+}
+
+/// The automatic depth limit (pbrt-v3's 8 + 1.3·log2 N), never beyond the traversal stack.
+pub fn default_max_depth(n: usize) -> u32 {
+    let d = (8.0 + 1.3 * (n.max(1) as f64).log2()).round() as u32;
+    d.min(KD_MAX_DEPTH)
+}
+
+/// Builds the tree of `triangles` inside the box [bounds_min, bounds_max], which must contain
+/// them all.
+pub fn build(triangles: &[Triangle], bounds_min: Vec3, bounds_max: Vec3, settings: BuildSettings) -> KdTree {
+    let max_depth = settings.depth_limit(triangles.len());
+    match settings.builder {
+        Builder::Median => median::build(triangles, bounds_min, bounds_max, settings.leaf_size.max(4), max_depth),
+        Builder::Sah => {
+            let tris: Vec<clip::Tri64> = triangles.iter().map(clip::to_f64).collect();
+            sah::build(&tris, Aabb { lo: bounds_min.to_array(), hi: bounds_max.to_array() }, &settings, max_depth)
+        }
+    }
+}

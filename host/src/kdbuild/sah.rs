@@ -1,0 +1,367 @@
+//! SAH k-d tree construction in O(N log N): Wald & Havran, "On building fast kd-Trees for Ray
+//! Tracing, and on doing that in O(N log N)", IEEE Symposium on Interactive Ray Tracing 2006.
+//!
+//! - Events (start, end, or planar for a box flat on that axis) are sorted once per axis; every
+//!   split partitions the sorted lists in O(N) without re-sorting (§5.3). Only the events of
+//!   triangles that straddle the plane are made anew, from their clipped boxes (perfect splits,
+//!   §4.3), and sorted and merged in: O(N log N) in all.
+//! - One sweep per axis finds the plane of least cost over every candidate (§5.1); triangles lying
+//!   in the plane go to the side that makes the split cheaper (§4.2).
+//! - Cost C = λ·(K_T + K_I·(P_L·N_L + P_R·N_R)), with λ = `empty_factor` (0.8) when one side is
+//!   empty and the plane is not flat on the voxel's boundary, else 1 (the project's seed).
+//! - A node becomes a leaf when no split is cheaper than K_I·N, with pbrt-v3's allowance for a
+//!   few splits that cost more ("bad refines", §4.4.2), or at the depth limit.
+//! - The two children of a large node are built in parallel (rayon); each subtree is laid out
+//!   on its own and appended, so the tree does not depend on the number of threads.
+use super::clip::{clipped_box, Aabb, Tri64};
+use super::{BuildSettings, KdTree};
+use rayon::prelude::*;
+use shared::layout::KdNode;
+use std::cmp::Ordering;
+
+const END: u32 = 0;
+const PLANAR: u32 = 1;
+const START: u32 = 2;
+
+/// Nodes with fewer references than this build their subtree on one thread.
+const PARALLEL_MIN: usize = 4096;
+
+/// One event: a position on an axis and the node-local reference it belongs to, packed with the
+/// event kind as `reference << 2 | kind`. Within a node the references are 0..N, so partition
+/// flags are a plain array even when sibling subtrees are built in parallel.
+#[derive(Clone, Copy, Debug)]
+struct Event {
+    pos: f32,
+    key: u32,
+}
+
+impl Event {
+    fn new(pos: f32, reference: usize, kind: u32) -> Self {
+        // -0.0 + 0.0 = +0.0: both zeros sort and compare as one position.
+        Self { pos: pos + 0.0, key: ((reference as u32) << 2) | kind }
+    }
+    fn reference(self) -> usize {
+        (self.key >> 2) as usize
+    }
+    fn kind(self) -> u32 {
+        self.key & 3
+    }
+}
+
+/// Sweep order: by position, then end < planar < start (Wald & Havran §5.1).
+fn order(a: &Event, b: &Event) -> Ordering {
+    a.pos.total_cmp(&b.pos).then((a.key & 3).cmp(&(b.key & 3)))
+}
+
+fn push_events(events: &mut [Vec<Event>; 3], reference: usize, b: &Aabb) {
+    for (k, list) in events.iter_mut().enumerate() {
+        if b.lo[k] == b.hi[k] {
+            list.push(Event::new(b.lo[k], reference, PLANAR));
+        } else {
+            list.push(Event::new(b.lo[k], reference, START));
+            list.push(Event::new(b.hi[k], reference, END));
+        }
+    }
+}
+
+/// Merges two lists sorted by `order`.
+fn merge(a: Vec<Event>, b: Vec<Event>) -> Vec<Event> {
+    if b.is_empty() {
+        return a;
+    }
+    let mut out = Vec::with_capacity(a.len() + b.len());
+    let (mut i, mut j) = (0, 0);
+    while i < a.len() && j < b.len() {
+        if order(&b[j], &a[i]) == Ordering::Less {
+            out.push(b[j]);
+            j += 1;
+        } else {
+            out.push(a[i]);
+            i += 1;
+        }
+    }
+    out.extend_from_slice(&a[i..]);
+    out.extend_from_slice(&b[j..]);
+    out
+}
+
+/// A node under construction: its references (global triangle ids), events and voxel.
+struct Node {
+    triangles: Vec<u32>,
+    events: [Vec<Event>; 3],
+    voxel: Aabb,
+    depth: u32,
+    bad_refines: u32,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Plane {
+    axis: usize,
+    pos: f32,
+    /// Triangles lying in the plane go below it.
+    planar_below: bool,
+    cost: f64,
+}
+
+/// A subtree laid out on its own: child and index offsets are relative to its own arrays.
+#[derive(Default)]
+struct Subtree {
+    nodes: Vec<KdNode>,
+    indices: Vec<u32>,
+    depth: u32,
+}
+
+impl Subtree {
+    fn append(&mut self, other: Subtree) {
+        let (node_base, index_base) = (self.nodes.len() as u32, self.indices.len() as u32);
+        self.nodes.extend(other.nodes.into_iter().map(|n| {
+            if n.is_leaf() {
+                KdNode::leaf(n.first_index() + index_base, n.count())
+            } else {
+                KdNode::interior(n.axis(), n.split(), n.above_child() + node_base)
+            }
+        }));
+        self.indices.extend_from_slice(&other.indices);
+        self.depth = self.depth.max(other.depth);
+    }
+
+    fn leaf(&mut self, mut triangles: Vec<u32>, depth: u32) {
+        triangles.sort_unstable();
+        self.nodes.push(KdNode::leaf(self.indices.len() as u32, triangles.len() as u32));
+        self.indices.extend_from_slice(&triangles);
+        self.depth = self.depth.max(depth);
+    }
+}
+
+struct Sah<'a> {
+    triangles: &'a [Tri64],
+    traversal_cost: f64,
+    intersection_cost: f64,
+    empty_factor: f64,
+    max_depth: u32,
+    leaf_size: usize,
+    bad_refines: u32,
+}
+
+pub fn build(triangles: &[Tri64], bounds: Aabb, settings: &BuildSettings, max_depth: u32) -> KdTree {
+    let sah = Sah {
+        triangles,
+        traversal_cost: settings.traversal_cost as f64,
+        intersection_cost: settings.intersection_cost as f64,
+        empty_factor: settings.empty_factor as f64,
+        max_depth,
+        leaf_size: settings.leaf_size as usize,
+        bad_refines: settings.bad_refines,
+    };
+    let boxes: Vec<Option<Aabb>> = triangles.par_iter().map(|t| clipped_box(t, &bounds)).collect();
+    let mut root = Node { triangles: Vec::with_capacity(triangles.len()), events: Default::default(), voxel: bounds, depth: 0, bad_refines: 0 };
+    for (id, b) in boxes.iter().enumerate() {
+        if let Some(b) = b {
+            push_events(&mut root.events, root.triangles.len(), b);
+            root.triangles.push(id as u32);
+        }
+    }
+    root.events.par_iter_mut().for_each(|list| list.par_sort_unstable_by(order));
+    let sub = sah.build_parallel(root);
+    KdTree {
+        nodes: sub.nodes,
+        indices: sub.indices,
+        bounds_min: shared::glam::Vec3::from(bounds.lo),
+        bounds_max: shared::glam::Vec3::from(bounds.hi),
+        depth: sub.depth,
+    }
+}
+
+impl Sah<'_> {
+    fn build_parallel(&self, node: Node) -> Subtree {
+        if node.triangles.len() < PARALLEL_MIN {
+            let mut out = Subtree::default();
+            self.build_into(node, &mut out);
+            return out;
+        }
+        let mut out = Subtree::default();
+        match self.decide(&node) {
+            None => out.leaf(node.triangles, node.depth),
+            Some((plane, bad)) => {
+                let (below, above) = self.split(node, plane, bad);
+                let (b, a) = rayon::join(|| self.build_parallel(below), || self.build_parallel(above));
+                out.nodes.push(KdNode::default());
+                out.append(b);
+                let above_index = out.nodes.len() as u32;
+                out.nodes[0] = KdNode::interior(plane.axis as u32, plane.pos, above_index);
+                out.append(a);
+            }
+        }
+        out
+    }
+
+    fn build_into(&self, node: Node, out: &mut Subtree) {
+        match self.decide(&node) {
+            None => out.leaf(node.triangles, node.depth),
+            Some((plane, bad)) => {
+                let (below, above) = self.split(node, plane, bad);
+                let me = out.nodes.len();
+                out.nodes.push(KdNode::default());
+                self.build_into(below, out);
+                out.nodes[me] = KdNode::interior(plane.axis as u32, plane.pos, out.nodes.len() as u32);
+                self.build_into(above, out);
+            }
+        }
+    }
+
+    /// The plane to split at and the bad refines spent so far, or `None` for a leaf.
+    fn decide(&self, node: &Node) -> Option<(Plane, u32)> {
+        let n = node.triangles.len();
+        if n <= self.leaf_size || node.depth >= self.max_depth {
+            return None;
+        }
+        let plane = self.find_plane(node)?;
+        let leaf_cost = self.intersection_cost * n as f64;
+        if plane.cost < leaf_cost {
+            return Some((plane, node.bad_refines));
+        }
+        // pbrt-v3: a few costlier splits may lead to cheap ones further down, but not for
+        // small nodes where the split is far worse than the leaf.
+        let bad = node.bad_refines + 1;
+        if bad > self.bad_refines || (plane.cost > 4.0 * leaf_cost && n < 16) {
+            return None;
+        }
+        Some((plane, bad))
+    }
+
+    /// The cheapest plane over all three axes (one sweep over each axis's sorted events).
+    fn find_plane(&self, node: &Node) -> Option<Plane> {
+        let area = node.voxel.area();
+        if !(area > 0.0) {
+            return None;
+        }
+        let n = node.triangles.len();
+        let mut best: Option<Plane> = None;
+        for (k, events) in node.events.iter().enumerate() {
+            let (mut below, mut above) = (0usize, n);
+            let mut i = 0;
+            while i < events.len() {
+                let pos = events[i].pos;
+                let mut count = [0usize; 3];
+                for kind in [END, PLANAR, START] {
+                    while i < events.len() && events[i].pos == pos && events[i].kind() == kind {
+                        count[kind as usize] += 1;
+                        i += 1;
+                    }
+                }
+                let planar = count[PLANAR as usize];
+                above -= count[END as usize] + planar;
+                if let Some(p) = self.evaluate(&node.voxel, area, k, pos, below, planar, above) {
+                    if best.is_none_or(|b| p.cost < b.cost) {
+                        best = Some(p);
+                    }
+                }
+                below += count[START as usize] + planar;
+            }
+        }
+        best
+    }
+
+    /// The cost of splitting at `pos` on axis `k` with the planar triangles on the cheaper side;
+    /// `None` for a split that makes no progress (an empty child whose sibling is the voxel).
+    #[allow(clippy::too_many_arguments)]
+    fn evaluate(&self, voxel: &Aabb, area: f64, k: usize, pos: f32, below: usize, planar: usize, above: usize) -> Option<Plane> {
+        let (lo, hi) = (voxel.lo[k], voxel.hi[k]);
+        let (e1, e2) = (voxel.extent((k + 1) % 3), voxel.extent((k + 2) % 3));
+        let face = e1 * e2;
+        let rim = e1 + e2;
+        let p_below = 2.0 * (face + (pos as f64 - lo as f64) * rim) / area;
+        let p_above = 2.0 * (face + (hi as f64 - pos as f64) * rim) / area;
+        let cost = |nb: usize, na: usize| -> Option<f64> {
+            if (nb == 0 && pos == lo) || (na == 0 && pos == hi) {
+                return None;
+            }
+            let flat_on_boundary = pos == lo || pos == hi;
+            let lambda = if (nb == 0 || na == 0) && !flat_on_boundary { self.empty_factor } else { 1.0 };
+            Some(lambda * (self.traversal_cost + self.intersection_cost * (p_below * nb as f64 + p_above * na as f64)))
+        };
+        let with_below = cost(below + planar, above);
+        let with_above = cost(below, above + planar);
+        let (cost, planar_below) = match (with_below, with_above) {
+            (Some(b), Some(a)) => {
+                if b <= a {
+                    (b, true)
+                } else {
+                    (a, false)
+                }
+            }
+            (Some(b), None) => (b, true),
+            (None, Some(a)) => (a, false),
+            (None, None) => return None,
+        };
+        Some(Plane { axis: k, pos, planar_below, cost })
+    }
+
+    /// Partitions the node's references and events for `plane` (Wald & Havran §5.3).
+    fn split(&self, node: Node, plane: Plane, bad_refines: u32) -> (Node, Node) {
+        const BOTH: u8 = 0;
+        const BELOW: u8 = 1;
+        const ABOVE: u8 = 2;
+        let (k, pos) = (plane.axis, plane.pos);
+        let n = node.triangles.len();
+        let mut side = vec![BOTH; n];
+        for e in &node.events[k] {
+            let r = e.reference();
+            match e.kind() {
+                END if e.pos <= pos => side[r] = BELOW,
+                START if e.pos >= pos => side[r] = ABOVE,
+                PLANAR => side[r] = if e.pos < pos || (e.pos == pos && plane.planar_below) { BELOW } else { ABOVE },
+                _ => {}
+            }
+        }
+        let (below_voxel, above_voxel) = node.voxel.split(k, pos);
+        let mut map = [vec![u32::MAX; n], vec![u32::MAX; n]];
+        let mut tris: [Vec<u32>; 2] = [Vec::new(), Vec::new()];
+        let mut fresh: [[Vec<Event>; 3]; 2] = Default::default();
+        for r in 0..n {
+            let t = node.triangles[r];
+            match side[r] {
+                BELOW | ABOVE => {
+                    let s = (side[r] - 1) as usize;
+                    map[s][r] = tris[s].len() as u32;
+                    tris[s].push(t);
+                }
+                _ => {
+                    // Straddling: clip to each child (perfect splits); a child it misses drops it.
+                    for (s, voxel) in [below_voxel, above_voxel].iter().enumerate() {
+                        if let Some(b) = clipped_box(&self.triangles[t as usize], voxel) {
+                            push_events(&mut fresh[s], tris[s].len(), &b);
+                            tris[s].push(t);
+                        }
+                    }
+                }
+            }
+        }
+        let mut events: [[Vec<Event>; 3]; 2] = Default::default();
+        let [old_x, old_y, old_z] = node.events;
+        for (axis, old) in [old_x, old_y, old_z].into_iter().enumerate() {
+            let mut kept = [Vec::with_capacity(old.len() / 2), Vec::with_capacity(old.len() / 2)];
+            for e in old {
+                let r = e.reference();
+                let s = side[r];
+                if s != BOTH {
+                    let s = (s - 1) as usize;
+                    kept[s].push(Event { pos: e.pos, key: (map[s][r] << 2) | e.kind() });
+                }
+            }
+            let [kept_below, kept_above] = kept;
+            for (s, kept) in [kept_below, kept_above].into_iter().enumerate() {
+                let mut new = std::mem::take(&mut fresh[s][axis]);
+                new.sort_unstable_by(order);
+                events[s][axis] = merge(kept, new);
+            }
+        }
+        let [below_tris, above_tris] = tris;
+        let [below_events, above_events] = events;
+        let depth = node.depth + 1;
+        (
+            Node { triangles: below_tris, events: below_events, voxel: below_voxel, depth, bad_refines },
+            Node { triangles: above_tris, events: above_events, voxel: above_voxel, depth, bad_refines },
+        )
+    }
+}

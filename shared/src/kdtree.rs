@@ -46,10 +46,10 @@ impl Hit {
 }
 
 #[derive(Clone, Copy)]
-struct StackEntry {
-    node: u32,
-    t_min: f32,
-    t_max: f32,
+pub(crate) struct StackEntry {
+    pub node: u32,
+    pub t_min: f32,
+    pub t_max: f32,
 }
 
 /// Components below the smallest normal float become exactly zero: a GPU may flush denormals
@@ -79,7 +79,7 @@ fn recip(x: f32) -> f32 {
 
 /// Per-axis reciprocal direction; zero components get 0 and are never used (see module docs).
 #[inline]
-fn safe_reciprocal(d: Vec3) -> Vec3 {
+pub(crate) fn safe_reciprocal(d: Vec3) -> Vec3 {
     Vec3::new(recip(d.x), recip(d.y), recip(d.z))
 }
 
@@ -137,7 +137,7 @@ pub fn occluded_hit(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32) -> H
     traverse(scene, origin, dir, t_max, true)
 }
 
-fn traverse(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32, any_hit: bool) -> Hit {
+pub(crate) fn traverse(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32, any_hit: bool) -> Hit {
     let dir = flush_denormals(dir);
     let mut best = Hit::miss(t_max);
     let zero_dir = (dir.x == 0.0) & (dir.y == 0.0) & (dir.z == 0.0);

@@ -22,6 +22,7 @@ pub mod raycast;
 pub mod rng;
 pub mod sampling;
 pub mod scene;
+pub mod short_stack;
 pub mod triangle;
 pub mod trig;
 pub mod vecmath;

@@ -1,0 +1,176 @@
+//! Short-stack k-d traversal with restart: Horn, Sugerman, Houston & Hanrahan, "Interactive k-D
+//! Tree GPU Raytracing" (I3D 2007), after Foley & Sugerman's kd-restart (Graphics Hardware 2005).
+//!
+//! The traversal of `kdtree` with a stack of only `S` entries, kept as a ring: pushing onto a
+//! full stack drops the oldest entry (the farthest along the ray, but for rays lying in split
+//! planes). When the stack runs dry after entries were dropped, everything before the nearest
+//! dropped entry has been visited, so the traversal restarts from the root with the ray clipped
+//! to start there.
+//! With a stack as deep as the tree it never restarts and does exactly what `kdtree::intersect`
+//! does; with any `S ≥ 1` it returns the same hit (tested against brute force).
+//!
+//! Restarting needs progress along the ray. A ray lying exactly in a split plane visits both
+//! halves over the same interval, so a dropped entry may start where the traversal already is;
+//! when a restart would not move forward, that ray finishes with the full-stack traversal
+//! (counted as a restart). Such rays are rare outside adversarial tests.
+//!
+//! A small stack is what makes a k-d traversal fit in a GPU thread's registers.
+use crate::glam::Vec3;
+use crate::kdtree::{clip_to_bounds, flush_denormals, safe_reciprocal, Hit, StackEntry};
+use crate::numerics::{is_finite3, T_SLACK};
+use crate::scene::SceneView;
+use crate::triangle::RayShear;
+use crate::vecmath::axis;
+
+/// The stack depth the renderer uses on both devices.
+pub const SHORT_STACK: usize = 4;
+
+/// The closest hit with t in (0, t_max), traversing with an `S`-entry stack (`S ≥ 1`).
+#[inline]
+pub fn intersect_short<const S: usize>(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32) -> ShortHit {
+    traverse::<S>(scene, origin, dir, t_max, false)
+}
+
+/// Any hit with t in (0, t_max).
+#[inline]
+pub fn occluded_short<const S: usize>(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32) -> ShortHit {
+    traverse::<S>(scene, origin, dir, t_max, true)
+}
+
+/// A hit and how many times the traversal restarted from the root.
+#[derive(Clone, Copy, Debug)]
+pub struct ShortHit {
+    pub hit: Hit,
+    pub restarts: u32,
+}
+
+fn traverse<const S: usize>(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32, any_hit: bool) -> ShortHit {
+    let dir = flush_denormals(dir);
+    let mut best = Hit::miss(t_max);
+    let zero_dir = (dir.x == 0.0) & (dir.y == 0.0) & (dir.z == 0.0);
+    let mut restarts = 0u32;
+    if !is_finite3(origin) | !is_finite3(dir) | zero_dir | scene.nodes.is_empty() | (S == 0) {
+        return ShortHit { hit: best, restarts };
+    }
+    let inv = safe_reciprocal(dir);
+    let (t_enter, t_exit) = match clip_to_bounds(scene.bounds_min, scene.bounds_max, origin, dir, inv, 0.0, t_max) {
+        Some(range) => range,
+        None => return ShortHit { hit: best, restarts },
+    };
+    let shear = RayShear::new(origin, dir);
+    let mut stack = [StackEntry { node: 0, t_min: 0.0, t_max: 0.0 }; S];
+    // `top` is the next free slot of the ring; `count` entries below it are live.
+    let mut top = 0usize;
+    let mut count = 0usize;
+    let mut dropped = false;
+    // The nearest entry dropped since the last restart: the traversal restarts there.
+    let mut drop_min = f32::MAX;
+    let mut fall_back = false;
+    let (mut t0, mut t1) = (t_enter, t_exit);
+    let mut restart_at = t_enter;
+    let mut node = 0u32;
+    let (mut nodes, mut tests) = (0u32, 0u32);
+    let mut done = false;
+    while !done {
+        nodes += 1;
+        let n = scene.nodes[node as usize];
+        if !n.is_leaf() {
+            let ax = n.axis();
+            let split = n.split();
+            let o = axis(origin, ax);
+            let d = axis(dir, ax);
+            let below_first = (o < split) | ((o == split) & (d <= 0.0));
+            let (first, second) = if below_first { (node + 1, n.above_child()) } else { (n.above_child(), node + 1) };
+            let mut push = false;
+            let mut push_t0 = t0;
+            let push_t1 = t1;
+            if d == 0.0 {
+                // Parallel to the plane: stay on the origin's side, or visit both when in it.
+                push = o == split;
+                node = first;
+            } else {
+                let t_split = (split - o) * axis(inv, ax);
+                if (t_split > t1 * (1.0 + T_SLACK)) | (t_split <= 0.0) {
+                    node = first;
+                } else if t_split < t0 * (1.0 - T_SLACK) {
+                    node = second;
+                } else {
+                    push = true;
+                    push_t0 = if t_split > t0 { t_split } else { t0 };
+                    node = first;
+                    t1 = if t_split < t1 { t_split } else { t1 };
+                }
+            }
+            if push {
+                if count == S {
+                    // The ring is full: the slot at `top` holds the oldest entry, dropped now.
+                    let old = stack[top].t_min;
+                    drop_min = if old < drop_min { old } else { drop_min };
+                }
+                stack[top] = StackEntry { node: second, t_min: push_t0, t_max: push_t1 };
+                top = if top + 1 == S { 0 } else { top + 1 };
+                if count == S {
+                    dropped = true;
+                } else {
+                    count += 1;
+                }
+            }
+            continue;
+        }
+        let start = n.first_index();
+        let c = n.count();
+        let mut i = 0;
+        while (i < c) & !done {
+            let id = scene.indices[(start + i) as usize];
+            tests += 1;
+            if let Some(h) = shear.intersect(&scene.triangles[id as usize], 0.0, best.t) {
+                best = Hit { t: h.t, triangle: id, u: h.u, v: h.v, w: h.w, nodes, tests };
+                done = any_hit;
+            }
+            i += 1;
+        }
+        // Pop the nearest entry that may still hold a closer hit. Entries pushed for a ray lying
+        // in a split plane start where the traversal already is, so the stack is not sorted by
+        // distance: every entry is checked, none is assumed culled by the one above it.
+        let mut found = false;
+        while (count > 0) & !found & !done {
+            top = if top == 0 { S - 1 } else { top - 1 };
+            count -= 1;
+            let e = stack[top];
+            if e.t_min * (1.0 - T_SLACK) <= best.t {
+                node = e.node;
+                t0 = e.t_min;
+                t1 = e.t_max;
+                found = true;
+            }
+        }
+        if !found & !done {
+            let more = dropped & (drop_min * (1.0 - T_SLACK) <= best.t);
+            if more & (drop_min > restart_at) {
+                // Restart from the root at the nearest dropped entry: everything before it
+                // has been visited.
+                restart_at = drop_min;
+                t0 = restart_at;
+                t1 = t_exit;
+                node = 0;
+                top = 0;
+                count = 0;
+                dropped = false;
+                drop_min = f32::MAX;
+                restarts += 1;
+            } else {
+                // No progress possible (a ray lying in split planes needs both halves over the
+                // same interval, more than the stack holds): finish with the full stack.
+                fall_back = more;
+                done = true;
+            }
+        }
+    }
+    if fall_back {
+        let full = crate::kdtree::traverse(scene, origin, dir, t_max, any_hit);
+        return ShortHit { hit: Hit { nodes: nodes + full.nodes, tests: tests + full.tests, ..full }, restarts: restarts + 1 };
+    }
+    best.nodes = nodes;
+    best.tests = tests;
+    ShortHit { hit: best, restarts }
+}

@@ -7,7 +7,7 @@ use kdtrace::{compile, cpu, gpu, procedural};
 use shared::glam::Vec3;
 
 fn settings(size: u32, spp: u32, bounces: u32, camera: Camera) -> RenderSettings {
-    RenderSettings { width: size, height: size, spp, max_bounces: bounces, seed: 7, rr_start: 3, environment: Vec3::ZERO, camera }
+    RenderSettings { width: size, height: size, spp, max_bounces: bounces, seed: 7, rr_start: 3, ..RenderSettings::with_camera(camera) }
 }
 
 fn inside_camera() -> Camera {

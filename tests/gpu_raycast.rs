@@ -7,7 +7,7 @@ use kdtrace::{gpu, load};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use shared::glam::Vec3;
-use shared::layout::{RayQuery, RAY_ANY_HIT};
+use shared::layout::{RayQuery, RAY_ANY_HIT, RAY_SHORT_STACK};
 use shared::numerics::offset_ray_origin;
 use shared::raycast::cast_ray;
 use shared::triangle::geometric_normal;
@@ -43,6 +43,8 @@ fn surface_rays(c: &Compiled, n: usize, seed: u64) -> Vec<RayQuery> {
             let n = geometric_normal(&tris[i]).normalize();
             let side = if rng.random::<bool>() { n } else { -n };
             let o = offset_ray_origin(p, side);
+            // Every other pair of rays takes the short-stack traversal.
+            let stack = if k % 4 < 2 { 0 } else { RAY_SHORT_STACK };
             if k % 2 == 0 {
                 let d = loop {
                     let v = Vec3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
@@ -51,11 +53,11 @@ fn surface_rays(c: &Compiled, n: usize, seed: u64) -> Vec<RayQuery> {
                     }
                 };
                 let d = if d.dot(side) < 0.0 { -d } else { d };
-                query(o, d, f32::MAX, 0)
+                query(o, d, f32::MAX, stack)
             } else {
                 let j = rng.random_range(0..tris.len());
                 let q = point(&mut rng, j);
-                query(o, q - o, 1.0 - 1e-4, RAY_ANY_HIT)
+                query(o, q - o, 1.0 - 1e-4, RAY_ANY_HIT | stack)
             }
         })
         .collect()
@@ -72,7 +74,7 @@ fn cast_on_both(c: &Compiled, rays: &[RayQuery], what: &str) {
     let mut mismatches = Vec::new();
     for (i, (a, b)) in cpu.iter().zip(&gpu).enumerate() {
         hits += (a.triangle != u32::MAX) as usize;
-        if (a.t.to_bits(), a.triangle, a.nodes, a.tests) != (b.t.to_bits(), b.triangle, b.nodes, b.tests) {
+        if (a.t.to_bits(), a.triangle, a.nodes, a.tests, a.restarts) != (b.t.to_bits(), b.triangle, b.nodes, b.tests, b.restarts) {
             mismatches.push(i);
         }
     }

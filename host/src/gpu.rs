@@ -3,7 +3,7 @@
 //! Each pass dispatches one invocation per pixel that adds a few samples to the pixel's running
 //! sum in a storage buffer, so progress can be reported between passes and no single dispatch
 //! runs long enough to trip a driver watchdog. The sum is read back once at the end.
-use crate::render::{Compiled, Progress, RenderSettings, Rendered};
+use crate::render::{Compiled, Dispatch, Progress, RenderSettings, Rendered};
 use anyhow::{anyhow, bail, Context, Result};
 use shared::glam::Vec4;
 use shared::layout::{RayQuery, RayResult, RenderParams};
@@ -12,6 +12,12 @@ use wgpu::util::DeviceExt;
 static KERNEL_SPV: &[u8] = include_bytes!(env!("kernel.spv"));
 const RENDER_ENTRY: &str = "render_pass";
 const CAST_ENTRY: &str = "cast_rays";
+const PERSISTENT_ENTRY: &str = "render_persistent";
+/// The persistent kernel's workgroup size and batch (`threads(64, 1, 1)`).
+const PERSISTENT_GROUP: u32 = 64;
+/// Workgroups of the persistent kernel: enough to fill a large GPU (132 SMs × 16 groups of 64
+/// on an H100 is about 2000), few enough that each takes many batches on smaller ones.
+const PERSISTENT_GROUPS: u32 = 2048;
 /// The render kernel's workgroup side (`threads(8, 8, 1)`).
 const GROUP: u32 = 8;
 /// The ray-casting kernel's workgroup size (`threads(64, 1, 1)`).
@@ -20,16 +26,23 @@ const CAST_GROUP: u32 = 64;
 const MAX_GROUPS_X: u32 = 65535;
 /// Samples per pixel added in one dispatch are chosen so a pass traces about this many paths.
 const PATHS_PER_PASS: u64 = 1 << 18;
-/// The most samples one invocation traces in one dispatch. On lavapipe (Mesa 22.3.6, LLVM 15)
-/// an invocation that loops over 11 or more samples loses later samples of whole subgroups
-/// (their radiance comes back zero) while 8 or fewer agree with the CPU bit for bit; see
-/// `tests/cpu_gpu_agreement.rs::water_box_agrees_with_many_samples_per_pixel`.
-const MAX_SAMPLES_PER_INVOCATION: u32 = 4;
+/// lavapipe (llvmpipe's gallivm) ends every loop of a shader invocation once the invocation has
+/// run 65535 loop iterations in all (`LP_MAX_TGSI_LOOP_ITERATIONS`, one counter shared by all
+/// loops), silently: the traversal loops of later samples then stop at once and whole subgroups
+/// lose those samples. A k-d traversal iterates once per node and per triangle, so on CPU
+/// adapters the work of one invocation in one dispatch is kept small: at most this many samples
+/// per pixel per pass (16 samples of 6-bounce paths in CornellBox-Water exceeded the limit; see
+/// `tests/cpu_gpu_agreement.rs::water_box_agrees_with_many_samples_per_pixel`)...
+const CPU_ADAPTER_SAMPLES_PER_PASS: u32 = 4;
+/// ...and, for the persistent kernel, one sample per pass and at most this many batches per
+/// workgroup. Real GPUs have no such limit.
+const CPU_ADAPTER_PERSISTENT_ROUNDS: u32 = 4;
 
 pub struct Gpu {
     device: wgpu::Device,
     queue: wgpu::Queue,
     render_pipeline: wgpu::ComputePipeline,
+    persistent_pipeline: wgpu::ComputePipeline,
     cast_pipeline: wgpu::ComputePipeline,
     bind_layout: wgpu::BindGroupLayout,
     pub adapter: wgpu::AdapterInfo,
@@ -42,10 +55,12 @@ mod binding {
     pub const PRIMARY: u32 = 8;
     // 9: the rays of `cast_rays` (read-only).
     pub const RESULTS: u32 = 10;
+    /// The persistent kernel's work counter.
+    pub const QUEUE: u32 = 11;
     /// Bindings in all: the uniform parameters, then storage buffers.
-    pub const COUNT: u32 = 11;
+    pub const COUNT: u32 = 12;
     /// Storage bindings the kernel writes; every other storage binding is read-only.
-    pub const WRITABLE: [u32; 3] = [ACCUM, PRIMARY, RESULTS];
+    pub const WRITABLE: [u32; 4] = [ACCUM, PRIMARY, RESULTS, QUEUE];
 }
 
 /// One explicit layout for every entry point. wgpu's automatic layout keeps only the bindings an
@@ -129,11 +144,12 @@ impl Gpu {
             })
         };
         let render_pipeline = pipeline(RENDER_ENTRY);
+        let persistent_pipeline = pipeline(PERSISTENT_ENTRY);
         let cast_pipeline = pipeline(CAST_ENTRY);
         if let Some(e) = pollster::block_on(scope.pop()) {
             bail!("adapter {:?} rejected the kernel: {e}", info.name);
         }
-        Ok(Self { device, queue, render_pipeline, cast_pipeline, bind_layout, adapter: info })
+        Ok(Self { device, queue, render_pipeline, persistent_pipeline, cast_pipeline, bind_layout, adapter: info })
     }
 
     fn storage(&self, label: &str, data: &[u8]) -> wgpu::Buffer {
@@ -177,8 +193,8 @@ impl Gpu {
     }
 
     /// The bind group of all bindings: the scene's, then the outputs and ray buffers.
-    fn bind(&self, s: &SceneBuffers, accum: &wgpu::Buffer, primary: &wgpu::Buffer, rays: &wgpu::Buffer, results: &wgpu::Buffer) -> wgpu::BindGroup {
-        let buffers = [&s.params, &s.nodes, &s.indices, &s.triangles, &s.info, &s.materials, &s.lights, accum, primary, rays, results];
+    fn bind(&self, s: &SceneBuffers, accum: &wgpu::Buffer, primary: &wgpu::Buffer, rays: &wgpu::Buffer, results: &wgpu::Buffer, queue: &wgpu::Buffer) -> wgpu::BindGroup {
+        let buffers = [&s.params, &s.nodes, &s.indices, &s.triangles, &s.info, &s.materials, &s.lights, accum, primary, rays, results, queue];
         debug_assert_eq!(buffers.len() as u32, binding::COUNT);
         let entries: Vec<wgpu::BindGroupEntry> = buffers.iter().enumerate().map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() }).collect();
         self.device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some("scene"), layout: &self.bind_layout, entries: &entries })
@@ -206,16 +222,32 @@ impl Gpu {
         let accum = self.output("accum", accum_bytes);
         let primary = self.output("primary", pixels * 4);
         let (rays, results) = (self.output("rays (unused)", 0), self.output("results (unused)", 0));
-        let group = self.bind(&scene, &accum, &primary, &rays, &results);
-
-        let per_pass = ((PATHS_PER_PASS / pixels.max(1)) as u32).clamp(1, s.spp.min(MAX_SAMPLES_PER_INVOCATION));
+        let work = self.device.create_buffer(&wgpu::BufferDescriptor { label: Some("work queue"), size: 16, usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST, mapped_at_creation: false });
+        let group = self.bind(&scene, &accum, &primary, &rays, &results, &work);
+        // Work per invocation and dispatch, bounded on CPU adapters (see `CPU_ADAPTER_*`).
+        let cpu_adapter = self.adapter.device_type == wgpu::DeviceType::Cpu;
+        let batches = pixels.div_ceil(PERSISTENT_GROUP as u64) as u32;
+        let (max_per_pass, rounds, persistent_groups) = match (s.dispatch, cpu_adapter) {
+            (Dispatch::Persistent, true) => (1, CPU_ADAPTER_PERSISTENT_ROUNDS, batches.div_ceil(CPU_ADAPTER_PERSISTENT_ROUNDS)),
+            (Dispatch::Persistent, false) => (s.spp, u32::MAX, batches.min(PERSISTENT_GROUPS)),
+            (Dispatch::Plain, true) => (CPU_ADAPTER_SAMPLES_PER_PASS, 0, 0),
+            (Dispatch::Plain, false) => (s.spp, 0, 0),
+        };
+        let per_pass = ((PATHS_PER_PASS / pixels.max(1)) as u32).clamp(1, s.spp.min(max_per_pass));
         let total = pixels * s.spp as u64;
         let mut start = 0;
         while start < s.spp {
             let count = per_pass.min(s.spp - start);
-            let params = c.params(s, start, count)?;
+            let mut params = c.params(s, start, count)?;
+            params.persistent_rounds = rounds;
             self.queue.write_buffer(&scene.params, 0, bytemuck::bytes_of(&params));
-            self.dispatch(&self.render_pipeline, &group, (s.width.div_ceil(GROUP), s.height.div_ceil(GROUP)))?;
+            match s.dispatch {
+                Dispatch::Plain => self.dispatch(&self.render_pipeline, &group, (s.width.div_ceil(GROUP), s.height.div_ceil(GROUP)))?,
+                Dispatch::Persistent => {
+                    self.queue.write_buffer(&work, 0, bytemuck::bytes_of(&[0u32; 4]));
+                    self.dispatch(&self.persistent_pipeline, &group, (persistent_groups, 1))?
+                }
+            }
             start += count;
             progress(pixels * start as u64, total);
         }
@@ -226,8 +258,14 @@ impl Gpu {
 
     /// Casts a batch of rays through the scene's tree (no shading); one result per ray.
     pub fn cast(&self, c: &Compiled, rays: &[RayQuery]) -> Result<Vec<RayResult>> {
+        Ok(self.cast_timed(c, rays)?.0)
+    }
+
+    /// `cast`, with the seconds the dispatch took (from submission to completion; uploads and
+    /// the read-back excluded).
+    pub fn cast_timed(&self, c: &Compiled, rays: &[RayQuery]) -> Result<(Vec<RayResult>, f64)> {
         if rays.is_empty() {
-            return Ok(Vec::new());
+            return Ok((Vec::new(), 0.0));
         }
         let bytes = std::mem::size_of_val(rays);
         self.check_size("rays", bytes)?;
@@ -236,14 +274,18 @@ impl Gpu {
         let ray_buffer = self.storage("rays", bytemuck::cast_slice(rays));
         let result_bytes = std::mem::size_of_val(rays) as u64 / std::mem::size_of::<RayQuery>() as u64 * std::mem::size_of::<RayResult>() as u64;
         let results = self.output("results", result_bytes);
-        let (accum, primary) = (self.output("accum (unused)", 0), self.output("primary (unused)", 0));
-        let group = self.bind(&scene, &accum, &primary, &ray_buffer, &results);
+        let (accum, primary, work) = (self.output("accum (unused)", 0), self.output("primary (unused)", 0), self.output("work queue (unused)", 0));
+        let group = self.bind(&scene, &accum, &primary, &ray_buffer, &results, &work);
         let groups = rays.len().div_ceil(CAST_GROUP as usize);
         if groups > MAX_GROUPS_X as usize {
             bail!("{} rays in one batch: at most {} are supported", rays.len(), MAX_GROUPS_X * CAST_GROUP);
         }
+        // Finish the uploads first so the timing covers the dispatch alone.
+        self.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| anyhow!("GPU upload failed: {e}"))?;
+        let t = std::time::Instant::now();
         self.dispatch(&self.cast_pipeline, &group, (groups as u32, 1))?;
-        self.read_back(&results, result_bytes)
+        let secs = t.elapsed().as_secs_f64();
+        Ok((self.read_back(&results, result_bytes)?, secs))
     }
 
     fn read_back<T: bytemuck::Pod>(&self, src: &wgpu::Buffer, size: u64) -> Result<Vec<T>> {

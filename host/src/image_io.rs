@@ -20,6 +20,28 @@ pub fn check_output_path(path: &Path) -> Result<()> {
     }
 }
 
+pub fn is_exr(path: &Path) -> bool {
+    path.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("exr"))
+}
+
+/// A heat map of per-pixel traversal cost (nodes + triangle tests), scaled to the image's
+/// maximum, for viewing as PNG: black, blue, magenta, orange, then white for the costliest
+/// pixel. The colours are linear RGB, so the PNG's sRGB encoding applies as usual.
+pub fn heat_map(cost: &[[f32; 3]]) -> Vec<[f32; 3]> {
+    const STOPS: [[f32; 3]; 5] = [[0.0, 0.0, 0.0], [0.0, 0.05, 0.6], [0.6, 0.0, 0.5], [1.0, 0.35, 0.0], [1.0, 1.0, 1.0]];
+    let total = |p: &[f32; 3]| p[0] + p[1];
+    let max = cost.iter().map(total).fold(0.0f32, f32::max);
+    cost.iter()
+        .map(|p| {
+            let x = if max > 0.0 { (total(p) / max).clamp(0.0, 1.0) } else { 0.0 } * (STOPS.len() - 1) as f32;
+            let i = (x.floor() as usize).min(STOPS.len() - 2);
+            let f = x - i as f32;
+            let (a, b) = (STOPS[i], STOPS[i + 1]);
+            [a[0] + (b[0] - a[0]) * f, a[1] + (b[1] - a[1]) * f, a[2] + (b[2] - a[2]) * f]
+        })
+        .collect()
+}
+
 pub fn write_image(path: &Path, width: u32, height: u32, rgb: &[[f32; 3]]) -> Result<()> {
     if rgb.len() != (width * height) as usize {
         bail!("{}: {} pixels for a {width}x{height} image", path.display(), rgb.len());

@@ -7,6 +7,7 @@ pub mod image_io;
 pub mod kdbuild;
 pub mod obj;
 pub mod procedural;
+pub mod raybench;
 pub mod render;
 pub mod scene;
 pub mod verify;

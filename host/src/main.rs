@@ -3,7 +3,7 @@ use anyhow::Result;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use kdtrace::camera::Camera;
-use kdtrace::render::{Compiled, RenderSettings, Rendered};
+use kdtrace::render::{Aov, Compiled, Dispatch, RenderSettings, Rendered, Traversal};
 use kdtrace::{cpu, gpu, image_io, kdbuild, verify};
 use serde_json::json;
 use shared::glam::Vec3;
@@ -28,6 +28,20 @@ enum Command {
     Adapters,
     /// Build a scene's k-d tree and report its statistics (and check it with --validate).
     Tree(TreeArgs),
+    /// Ray-casting throughput for primary, ambient-occlusion and diffuse rays (Aila & Laine).
+    Rays(RaysArgs),
+}
+
+#[derive(Args)]
+struct RaysArgs {
+    scene: PathBuf,
+    #[arg(long, value_enum, default_value_t = Device::Cpu)]
+    device: Device,
+    /// Timed runs after one warm-up; the fastest counts.
+    #[arg(long, default_value_t = 3)]
+    repeats: usize,
+    #[command(flatten)]
+    image: ImageArgs,
 }
 
 #[derive(Args)]
@@ -134,6 +148,16 @@ struct ImageArgs {
     /// Print one JSON line to stdout instead of a progress bar.
     #[arg(long)]
     json: bool,
+    /// k-d traversal: a short stack with restart, or a stack as deep as the tree.
+    #[arg(long, value_enum, default_value_t)]
+    traversal: Traversal,
+    /// GPU work distribution: one invocation per pixel, or persistent threads.
+    #[arg(long, value_enum, default_value_t)]
+    dispatch: Dispatch,
+    /// Image content: radiance, or the camera ray's traversal cost (PNG: heat map of nodes +
+    /// triangle tests; EXR: nodes, tests, restarts per pixel).
+    #[arg(long, value_enum, default_value_t)]
+    aov: Aov,
 }
 
 #[derive(Args)]
@@ -193,6 +217,9 @@ fn settings(a: &ImageArgs, c: &Compiled) -> Result<RenderSettings> {
         rr_start: 5,
         environment: Vec3::ZERO,
         camera,
+        traversal: a.traversal,
+        dispatch: a.dispatch,
+        aov: a.aov,
     };
     s.check()?;
     camera.basis(aspect)?;
@@ -238,7 +265,12 @@ fn render(r: RenderArgs) -> Result<ExitCode> {
     let c = &loaded.compiled;
     let s = settings(&r.image, c)?;
     let (img, adapter, render_s) = run_device(r.device, c, &s, &r.image)?;
-    image_io::write_image(&r.out, s.width, s.height, &img.mean())?;
+    let pixels = img.mean();
+    if s.aov == Aov::Cost && !image_io::is_exr(&r.out) {
+        image_io::write_image(&r.out, s.width, s.height, &image_io::heat_map(&pixels))?;
+    } else {
+        image_io::write_image(&r.out, s.width, s.height, &pixels)?;
+    }
     let samples = s.width as f64 * s.height as f64 * s.spp as f64;
     if r.image.json {
         let line = json!({
@@ -250,7 +282,16 @@ fn render(r: RenderArgs) -> Result<ExitCode> {
             "spp": s.spp, "width": s.width, "height": s.height, "bounces": s.max_bounces, "seed": s.seed,
             "load_s": loaded.load_s, "build_s": loaded.build_s, "render_s": render_s,
             "samples_per_s": samples / render_s, "zeroed_samples": img.zeroed_samples(),
+            "traversal": s.traversal, "dispatch": s.dispatch, "aov": s.aov,
         });
+        let mut line = line;
+        if s.aov == Aov::Cost {
+            let n = pixels.len() as f64;
+            let mean = |k: usize| pixels.iter().map(|p| p[k] as f64).sum::<f64>() / n;
+            line["mean_nodes"] = json!(mean(0));
+            line["mean_tests"] = json!(mean(1));
+            line["mean_restarts"] = json!(mean(2));
+        }
         println!("{line}");
     } else {
         eprintln!(
@@ -314,12 +355,50 @@ fn tree(t: TreeArgs) -> Result<ExitCode> {
     Ok(if valid.is_some_and(|v| v.is_err()) { ExitCode::from(1) } else { ExitCode::SUCCESS })
 }
 
+fn rays(r: RaysArgs) -> Result<ExitCode> {
+    use kdtrace::raybench::{band_samples, fit_costs, make_rays, measure, RayKind};
+    let loaded = kdtrace::load(&r.scene, kdbuild::BuildSettings::default())?;
+    let c = &loaded.compiled;
+    let s = settings(&r.image, c)?;
+    let g = match r.device {
+        Device::Gpu => Some(gpu::Gpu::open(r.image.adapter.as_deref())?),
+        Device::Cpu => None,
+    };
+    let adapter = g.as_ref().map_or_else(|| format!("cpu ({} threads)", rayon::current_num_threads()), |g| g.adapter.name.clone());
+    let primary = make_rays(c, &s, RayKind::Primary, s.traversal)?;
+    let costs = fit_costs(&band_samples(c, g.as_ref(), &primary, 8, r.repeats)?);
+    for kind in [RayKind::Primary, RayKind::Ao, RayKind::Diffuse] {
+        let batch = make_rays(c, &s, kind, s.traversal)?;
+        let (t, _) = measure(c, g.as_ref(), kind, &batch, r.repeats)?;
+        let ideal = costs.map(|c| c.ideal_mrays_per_s(t.nodes_per_ray, t.tests_per_ray));
+        if r.image.json {
+            let mut line = serde_json::to_value(&t)?;
+            let extra = json!({
+                "scene": r.scene, "device": if r.device == Device::Cpu { "cpu" } else { "gpu" }, "adapter": adapter,
+                "traversal": s.traversal, "triangles": c.scene.triangles.len(), "width": s.width, "height": s.height,
+                "ideal_mrays_per_s": ideal, "measured_over_ideal": ideal.map(|i| t.mrays_per_s / i),
+                "costs": costs,
+            });
+            line.as_object_mut().unwrap().extend(extra.as_object().unwrap().clone());
+            println!("{line}");
+        } else {
+            println!(
+                "{:?}: {} rays ({} hits) in {:.4} s: {:.2} Mrays/s; per ray {:.1} nodes, {:.1} tests, {:.3} restarts; ideal {} ({adapter}, {:?} stack)",
+                kind, t.rays, t.hits, t.seconds, t.mrays_per_s, t.nodes_per_ray, t.tests_per_ray, t.restarts_per_ray,
+                ideal.map_or("n/a".into(), |i| format!("{i:.2} Mrays/s, measured/ideal {:.2}", t.mrays_per_s / i)), s.traversal
+            );
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(r) => render(r),
         Command::Verify(v) => verify(v),
         Command::Tree(t) => tree(t),
+        Command::Rays(r) => rays(r),
         Command::Adapters => {
             for a in gpu::adapters() {
                 println!("{} ({:?}, {:?}, driver {} {})", a.name, a.device_type, a.backend, a.driver, a.driver_info);

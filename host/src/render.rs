@@ -5,8 +5,41 @@ use crate::kdbuild::KdTree;
 use crate::scene::Scene;
 use anyhow::{bail, Result};
 use shared::glam::{Vec3, Vec4};
-use shared::layout::{Light, RenderParams};
+use shared::layout::{Light, RenderParams, AOV_COST, AOV_RADIANCE, TRAVERSAL_FULL_STACK, TRAVERSAL_SHORT_STACK};
 use shared::scene::SceneView;
+
+/// Which k-d traversal renders (both return identical hits; they differ in speed).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Traversal {
+    /// A stack of `shared::short_stack::SHORT_STACK` entries with restart (Horn et al. 2007).
+    #[default]
+    Short,
+    /// A stack as deep as the tree.
+    Full,
+}
+
+/// How the GPU spreads pixels over invocations (the CPU always uses rayon over tiles).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Dispatch {
+    /// One invocation per pixel.
+    #[default]
+    Plain,
+    /// A fixed grid of workgroups pulling pixel batches from an atomic counter (Aila & Laine 2009).
+    Persistent,
+}
+
+/// What the image holds.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Aov {
+    /// Radiance (the render).
+    #[default]
+    Radiance,
+    /// The camera ray's traversal work: nodes visited (R), triangles tested (G), restarts (B).
+    Cost,
+}
 
 #[derive(Clone, Copy, Debug)]
 pub struct RenderSettings {
@@ -20,6 +53,9 @@ pub struct RenderSettings {
     pub rr_start: u32,
     pub environment: Vec3,
     pub camera: Camera,
+    pub traversal: Traversal,
+    pub dispatch: Dispatch,
+    pub aov: Aov,
 }
 
 /// Largest image side and sample count accepted: beyond these, buffers or counters overflow.
@@ -27,6 +63,24 @@ pub const MAX_SIDE: u32 = 16384;
 pub const MAX_SPP: u32 = 1 << 20;
 
 impl RenderSettings {
+    /// The defaults of the command line (512×512, 64 spp, 6 bounces, seed 0, Russian roulette
+    /// from bounce 5, black environment) seen through `camera`.
+    pub fn with_camera(camera: Camera) -> Self {
+        Self {
+            width: 512,
+            height: 512,
+            spp: 64,
+            max_bounces: 6,
+            seed: 0,
+            rr_start: 5,
+            environment: Vec3::ZERO,
+            camera,
+            traversal: Traversal::default(),
+            dispatch: Dispatch::default(),
+            aov: Aov::default(),
+        }
+    }
+
     pub fn check(&self) -> Result<()> {
         if self.width == 0 || self.height == 0 || self.width > MAX_SIDE || self.height > MAX_SIDE {
             bail!("resolution {}x{} must be within 1..={MAX_SIDE} on each side", self.width, self.height);
@@ -82,8 +136,18 @@ impl Compiled {
             light_count: self.scene.lights.len() as u32,
             inv_width: 1.0 / s.width as f32,
             inv_height: 1.0 / s.height as f32,
+            traversal: match s.traversal {
+                Traversal::Full => TRAVERSAL_FULL_STACK,
+                Traversal::Short => TRAVERSAL_SHORT_STACK,
+            },
+            aov: match s.aov {
+                Aov::Radiance => AOV_RADIANCE,
+                Aov::Cost => AOV_COST,
+            },
+            persistent_rounds: u32::MAX,
             _pad0: 0,
             _pad1: 0,
+            _pad2: 0,
         })
     }
 

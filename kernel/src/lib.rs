@@ -9,7 +9,12 @@ use shared::integrator::render_pixel;
 use shared::layout::{KdNode, Light, Material, RayQuery, RayResult, RenderParams, Triangle, TriangleInfo};
 use shared::raycast::cast_ray;
 use shared::scene::SceneView;
+use spirv_std::arch::{atomic_i_add, workgroup_memory_barrier_with_group_sync};
+use spirv_std::memory::{Scope, Semantics};
 use spirv_std::spirv;
+
+/// Invocations per workgroup of the persistent kernel; also the batch one workgroup takes.
+const PERSISTENT_GROUP: u32 = 64;
 
 /// One invocation per pixel: adds this pass's samples to the pixel's running sum.
 #[spirv(compute(threads(8, 8, 1)))]
@@ -35,6 +40,58 @@ pub fn render_pass(
     accum[pixel] = pass.sum;
     if params.sample_start == 0 {
         primary[pixel] = pass.primary;
+    }
+}
+
+/// Persistent threads (Aila & Laine 2009): a fixed grid of workgroups, each taking batches of
+/// `PERSISTENT_GROUP` pixels from a global atomic counter until every pixel is done, so no
+/// workgroup idles while others still trace long paths. One invocation fetches for its
+/// workgroup and shares the batch through workgroup memory; the loop's exit depends only on that
+/// shared value, so the barriers stay in uniform control flow. A workgroup takes at most
+/// `persistent_rounds` batches; the host launches enough workgroups that the queue drains.
+#[spirv(compute(threads(64, 1, 1)))]
+#[allow(clippy::too_many_arguments)]
+pub fn render_persistent(
+    #[spirv(local_invocation_index)] lane: u32,
+    #[spirv(workgroup)] batch: &mut u32,
+    #[spirv(uniform, descriptor_set = 0, binding = 0)] params: &RenderParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] nodes: &[KdNode],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] indices: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] triangles: &[Triangle],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] info: &[TriangleInfo],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] materials: &[Material],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] lights: &[Light],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] accum: &mut [Vec4],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] primary: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 11)] queue: &mut [u32],
+) {
+    let scene = SceneView::new(params, nodes, indices, triangles, info, materials, lights);
+    let total = params.width * params.height;
+    let mut running = true;
+    let mut round = 0;
+    while running & (round < params.persistent_rounds) {
+        round += 1;
+        if lane == 0 {
+            // QueueFamily scope: Device scope needs a capability naga rejects.
+            *batch = unsafe { atomic_i_add::<u32, { Scope::QueueFamily as u32 }, { Semantics::NONE.bits() }>(&mut queue[0], PERSISTENT_GROUP) };
+        }
+        workgroup_memory_barrier_with_group_sync();
+        let base = *batch;
+        // Everyone has read the batch before lane 0 may overwrite it in the next round.
+        workgroup_memory_barrier_with_group_sync();
+        if base >= total {
+            running = false;
+        } else {
+            let pixel = base + lane;
+            if pixel < total {
+                let (x, y) = (pixel % params.width, pixel / params.width);
+                let pass = render_pixel(&scene, params, x, y, accum[pixel as usize]);
+                accum[pixel as usize] = pass.sum;
+                if params.sample_start == 0 {
+                    primary[pixel as usize] = pass.primary;
+                }
+            }
+        }
     }
 }
 

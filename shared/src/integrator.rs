@@ -6,8 +6,9 @@
 //! of at most two segments after the camera: Mitsuba's `max_depth = max_bounces + 2`).
 use crate::camera::primary_direction;
 use crate::glam::{Vec3, Vec4};
-use crate::kdtree::{intersect, occluded, Hit};
-use crate::layout::{RenderParams, NO_HIT, NO_LIGHT};
+use crate::kdtree::Hit;
+use crate::raycast::{any, closest};
+use crate::layout::{RenderParams, AOV_COST, NO_HIT, NO_LIGHT};
 use crate::material::{emitted, eval, sample as sample_bsdf};
 use crate::numerics::{offset_ray_origin, sanitize_radiance};
 use crate::rng::Sampler;
@@ -64,11 +65,16 @@ pub fn trace_sample(scene: &SceneView, p: &RenderParams, px: u32, py: u32, sampl
     let mut primary = NO_HIT;
     let mut alive = true;
     while alive {
-        let hit = intersect(scene, path.origin, path.dir, f32::MAX);
+        let traced = closest(scene, p.traversal, path.origin, path.dir, f32::MAX);
+        let hit = traced.hit;
         if path.bounce == 0 {
             primary = hit.triangle;
         }
-        if hit.is_hit() {
+        if (path.bounce == 0) & (p.aov == AOV_COST) {
+            // The cost image: the camera ray's traversal work instead of radiance.
+            path.radiance = Vec3::new(hit.nodes as f32, hit.tests as f32, traced.restarts as f32);
+            alive = false;
+        } else if hit.is_hit() {
             alive = shade_vertex(scene, p, &mut path, &mut rng, &hit);
         } else {
             path.radiance += path.beta * xyz(p.environment);
@@ -127,7 +133,7 @@ fn shade_vertex(scene: &SceneView, p: &RenderParams, path: &mut Path, rng: &mut 
         if (cos_l > 0.0) & (pdf_bsdf > 0.0) & (dist2 > 0.0) {
             let light_pdf = light.pmf * dist2 / (cos_l * light.area);
             let target = offset_ray_origin(q, nl);
-            if !occluded(scene, spawn, target - spawn, 1.0 - SHADOW_EPSILON) {
+            if !any(scene, p.traversal, spawn, target - spawn, 1.0 - SHADOW_EPSILON).hit.is_hit() {
                 let lmat = &scene.materials[scene.info[light.triangle as usize].material as usize];
                 let weight = power_heuristic(light_pdf, pdf_bsdf);
                 path.radiance += path.beta * f * xyz(lmat.emission) * (dot(ns, wi) * weight / light_pdf);

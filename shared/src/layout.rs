@@ -145,12 +145,33 @@ pub struct RenderParams {
     /// 1 / width and 1 / height, computed once on the host so both devices multiply.
     pub inv_width: f32,
     pub inv_height: f32,
+    /// `TRAVERSAL_FULL_STACK` or `TRAVERSAL_SHORT_STACK`.
+    pub traversal: u32,
+    /// What the image holds: `AOV_RADIANCE` or `AOV_COST`.
+    pub aov: u32,
+    /// Batches one workgroup of the persistent kernel takes at most in one dispatch.
+    pub persistent_rounds: u32,
+    // Scalars, not an array: a uniform block aligns arrays to 16 bytes.
     pub _pad0: u32,
     pub _pad1: u32,
+    pub _pad2: u32,
 }
+
+/// k-d traversal with a stack as deep as the tree (`kdtree`).
+pub const TRAVERSAL_FULL_STACK: u32 = 0;
+/// k-d traversal with a `short_stack::SHORT_STACK`-entry stack and restart (`short_stack`).
+pub const TRAVERSAL_SHORT_STACK: u32 = 1;
+
+/// The image is radiance.
+pub const AOV_RADIANCE: u32 = 0;
+/// The image is the camera ray's traversal work: k-d nodes visited in `x`, triangles tested in
+/// `y`, restarts in `z`.
+pub const AOV_COST: u32 = 1;
 
 /// `RayQuery::flags`: stop at the first hit found (a shadow or ambient-occlusion ray).
 pub const RAY_ANY_HIT: u32 = 1;
+/// `RayQuery::flags`: traverse with the short stack instead of the full one.
+pub const RAY_SHORT_STACK: u32 = 2;
 
 /// One ray of a batch cast without shading: the ray-casting kernel, the CPU ≡ GPU traversal
 /// check and the rays/s benchmarks read these.
@@ -180,4 +201,7 @@ pub struct RayResult {
     /// k-d nodes visited and triangles tested.
     pub nodes: u32,
     pub tests: u32,
+    /// Restarts from the root (short-stack traversal only).
+    pub restarts: u32,
+    pub _pad: [u32; 3],
 }

@@ -1,17 +1,51 @@
-//! Casting given rays without shading: the closest hit or any hit, with the traversal's work.
+//! Ray queries behind one switch: the closest hit or any hit, by the full-stack or the
+//! short-stack traversal, with the traversal's work.
 //!
-//! The ray-casting kernel runs this per invocation and the CPU runs it per ray, so a batch of
-//! rays can be compared device against device ray by ray, and rays/s can be measured for the
-//! primary, ambient-occlusion and diffuse-bounce rays of Aila & Laine, "Understanding the
-//! Efficiency of Ray Traversal on GPUs" (HPG 2009).
-use crate::kdtree::{intersect, occluded_hit};
-use crate::layout::{RayQuery, RayResult, RAY_ANY_HIT};
+//! The integrator calls `closest` and `any` so the traversal is a run-time choice on both
+//! devices (`RenderParams::traversal`). The ray-casting kernel runs `cast_ray` per invocation
+//! and the CPU runs it per ray, so a batch of rays can be compared device against device ray by
+//! ray, and rays/s can be measured for the primary, ambient-occlusion and diffuse-bounce rays of
+//! Aila & Laine, "Understanding the Efficiency of Ray Traversal on GPUs" (HPG 2009).
+use crate::glam::Vec3;
+use crate::kdtree::{intersect, occluded_hit, Hit};
+use crate::layout::{RayQuery, RayResult, RAY_ANY_HIT, RAY_SHORT_STACK, TRAVERSAL_SHORT_STACK};
 use crate::scene::SceneView;
+use crate::short_stack::{intersect_short, occluded_short, SHORT_STACK};
 use crate::vecmath::xyz;
+
+/// A hit with the number of restarts the short stack needed (0 for the full stack).
+#[derive(Clone, Copy)]
+pub struct Traced {
+    pub hit: Hit,
+    pub restarts: u32,
+}
+
+/// The closest hit with t in (0, t_max) by the chosen traversal.
+#[inline]
+pub fn closest(scene: &SceneView, traversal: u32, origin: Vec3, dir: Vec3, t_max: f32) -> Traced {
+    if traversal == TRAVERSAL_SHORT_STACK {
+        let s = intersect_short::<SHORT_STACK>(scene, origin, dir, t_max);
+        Traced { hit: s.hit, restarts: s.restarts }
+    } else {
+        Traced { hit: intersect(scene, origin, dir, t_max), restarts: 0 }
+    }
+}
+
+/// Any hit with t in (0, t_max) by the chosen traversal.
+#[inline]
+pub fn any(scene: &SceneView, traversal: u32, origin: Vec3, dir: Vec3, t_max: f32) -> Traced {
+    if traversal == TRAVERSAL_SHORT_STACK {
+        let s = occluded_short::<SHORT_STACK>(scene, origin, dir, t_max);
+        Traced { hit: s.hit, restarts: s.restarts }
+    } else {
+        Traced { hit: occluded_hit(scene, origin, dir, t_max), restarts: 0 }
+    }
+}
 
 #[inline]
 pub fn cast_ray(scene: &SceneView, q: &RayQuery) -> RayResult {
     let (o, d) = (xyz(q.origin), xyz(q.dir));
-    let hit = if (q.flags & RAY_ANY_HIT) != 0 { occluded_hit(scene, o, d, q.t_max) } else { intersect(scene, o, d, q.t_max) };
-    RayResult { t: hit.t, triangle: hit.triangle, nodes: hit.nodes, tests: hit.tests }
+    let traversal = if (q.flags & RAY_SHORT_STACK) != 0 { TRAVERSAL_SHORT_STACK } else { 0 };
+    let r = if (q.flags & RAY_ANY_HIT) != 0 { any(scene, traversal, o, d, q.t_max) } else { closest(scene, traversal, o, d, q.t_max) };
+    RayResult { t: r.hit.t, triangle: r.hit.triangle, nodes: r.hit.nodes, tests: r.hit.tests, restarts: r.restarts, _pad: [0; 3] }
 }

@@ -116,7 +116,10 @@ fn many_triangles_sharing_one_vertex_and_needles() {
         // Needles: long and a hair wide.
         tris.push(tri([a, 2.0, 0.0], [a + 5.0, 2.0, 1.0], [a + 5.0, 2.0 + 1e-5, 1.0]));
     }
-    build_checked("fan and needles", &tris);
+    let tree = build_checked("fan and needles", &tris);
+    let refs = stats(&tree, tris.len(), &BuildSettings::default()).total_refs;
+    let cap = BuildSettings::default().max_refs_factor as f64 * tris.len() as f64;
+    assert!(refs as f64 <= cap, "{refs} references exceed the budget of {cap}");
 }
 
 fn shared_scene(rel: &str) -> PathBuf {

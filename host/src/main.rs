@@ -81,6 +81,9 @@ struct BuildArgs {
     /// Splits costlier than a leaf allowed on one path.
     #[arg(long)]
     bad_refines: Option<u32>,
+    /// Most triangle references per triangle in the whole tree (0: no limit).
+    #[arg(long)]
+    max_refs_factor: Option<f32>,
 }
 
 impl BuildArgs {
@@ -106,6 +109,9 @@ impl BuildArgs {
         }
         if let Some(x) = self.bad_refines {
             s.bad_refines = x;
+        }
+        if let Some(x) = self.max_refs_factor {
+            s.max_refs_factor = x;
         }
         s.check()?;
         Ok(s)

@@ -10,7 +10,10 @@
 //! - Cost C = λ·(K_T + K_I·(P_L·N_L + P_R·N_R)), with λ = `empty_factor` (0.8) when one side is
 //!   empty and the plane is not flat on the voxel's boundary, else 1 (the project's seed).
 //! - A node becomes a leaf when no split is cheaper than K_I·N, with pbrt-v3's allowance for a
-//!   few splits that cost more ("bad refines", §4.4.2), or at the depth limit.
+//!   few splits that cost more ("bad refines", §4.4.2), at the depth limit, or when the split
+//!   would exceed the node's share of the reference budget (`max_refs_factor`·N for the whole
+//!   tree): long thin triangles crossing many cells (needles, fans) otherwise multiply their
+//!   references until the depth limit, hundreds of times over.
 //! - The two children of a large node are built in parallel (rayon); each subtree is laid out
 //!   on its own and appended, so the tree does not depend on the number of threads.
 use super::clip::{clipped_box, Aabb, Tri64};
@@ -92,6 +95,8 @@ struct Node {
     voxel: Aabb,
     depth: u32,
     bad_refines: u32,
+    /// References this subtree's leaves may hold in all (see `BuildSettings::max_refs_factor`).
+    budget: f64,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -101,6 +106,9 @@ struct Plane {
     /// Triangles lying in the plane go below it.
     planar_below: bool,
     cost: f64,
+    /// References on each side (an upper bound: perfect splits may drop a few).
+    below: usize,
+    above: usize,
 }
 
 /// A subtree laid out on its own: child and index offsets are relative to its own arrays.
@@ -154,7 +162,8 @@ pub fn build(triangles: &[Tri64], bounds: Aabb, settings: &BuildSettings, max_de
         bad_refines: settings.bad_refines,
     };
     let boxes: Vec<Option<Aabb>> = triangles.par_iter().map(|t| clipped_box(t, &bounds)).collect();
-    let mut root = Node { triangles: Vec::with_capacity(triangles.len()), events: Default::default(), voxel: bounds, depth: 0, bad_refines: 0 };
+    let budget = if settings.max_refs_factor > 0.0 { settings.max_refs_factor as f64 * triangles.len().max(1) as f64 } else { f64::INFINITY };
+    let mut root = Node { triangles: Vec::with_capacity(triangles.len()), events: Default::default(), voxel: bounds, depth: 0, bad_refines: 0, budget };
     for (id, b) in boxes.iter().enumerate() {
         if let Some(b) = b {
             push_events(&mut root.events, root.triangles.len(), b);
@@ -216,6 +225,9 @@ impl Sah<'_> {
             return None;
         }
         let plane = self.find_plane(node)?;
+        if (plane.below + plane.above) as f64 > node.budget {
+            return None;
+        }
         let leaf_cost = self.intersection_cost * n as f64;
         if plane.cost < leaf_cost {
             return Some((plane, node.bad_refines));
@@ -294,7 +306,8 @@ impl Sah<'_> {
             (None, Some(a)) => (a, false),
             (None, None) => return None,
         };
-        Some(Plane { axis: k, pos, planar_below, cost })
+        let (nb, na) = if planar_below { (below + planar, above) } else { (below, above + planar) };
+        Some(Plane { axis: k, pos, planar_below, cost, below: nb, above: na })
     }
 
     /// Partitions the node's references and events for `plane` (Wald & Havran §5.3).
@@ -359,9 +372,13 @@ impl Sah<'_> {
         let [below_tris, above_tris] = tris;
         let [below_events, above_events] = events;
         let depth = node.depth + 1;
+        // The budget follows the references: each child gets its share, so no subtree can take
+        // more than the root allowed in all.
+        let refs = (below_tris.len() + above_tris.len()).max(1) as f64;
+        let (below_budget, above_budget) = (node.budget * below_tris.len() as f64 / refs, node.budget * above_tris.len() as f64 / refs);
         (
-            Node { triangles: below_tris, events: below_events, voxel: below_voxel, depth, bad_refines },
-            Node { triangles: above_tris, events: above_events, voxel: above_voxel, depth, bad_refines },
+            Node { triangles: below_tris, events: below_events, voxel: below_voxel, depth, bad_refines, budget: below_budget },
+            Node { triangles: above_tris, events: above_events, voxel: above_voxel, depth, bad_refines, budget: above_budget },
         )
     }
 }

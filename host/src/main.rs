@@ -11,6 +11,11 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 
+/// The k-d build allocates event lists per node by the million; mimalloc serves that several
+/// times faster than the system allocator.
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 #[derive(Parser)]
 #[command(name = "kdtrace", version, about = "A path tracer whose CPU reference and GPU kernel run the same Rust code")]
 struct Cli {

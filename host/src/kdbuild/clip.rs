@@ -109,6 +109,10 @@ pub fn clip_polygon(t: &Tri64, b: &Aabb) -> Option<Polygon> {
     let mut next = cur;
     for k in 0..3 {
         for (bound, above) in [(b.lo[k] as f64, true), (b.hi[k] as f64, false)] {
+            // Most planes cut nothing (a child voxel differs from its parent by one plane).
+            if cur.vertices().iter().all(|p| if above { p[k] >= bound } else { p[k] <= bound }) {
+                continue;
+            }
             if !clip_plane(&cur, &mut next, k, bound, above) {
                 return None;
             }

@@ -67,25 +67,21 @@ fn push_events(events: &mut [Vec<Event>; 3], reference: usize, b: &Aabb) {
     }
 }
 
-/// Merges two lists sorted by `order`.
-fn merge(a: Vec<Event>, b: Vec<Event>) -> Vec<Event> {
-    if b.is_empty() {
-        return a;
-    }
-    let mut out = Vec::with_capacity(a.len() + b.len());
-    let (mut i, mut j) = (0, 0);
-    while i < a.len() && j < b.len() {
-        if order(&b[j], &a[i]) == Ordering::Less {
-            out.push(b[j]);
-            j += 1;
+/// Merges `b` into `a`, both sorted by `order`, in place from the back (no second buffer).
+fn merge_into(a: &mut Vec<Event>, b: &[Event]) {
+    let (mut i, mut j) = (a.len(), b.len());
+    a.resize(i + j, Event { pos: 0.0, key: 0 });
+    let mut k = a.len();
+    while j > 0 {
+        k -= 1;
+        if i > 0 && order(&a[i - 1], &b[j - 1]) == Ordering::Greater {
+            a[k] = a[i - 1];
+            i -= 1;
         } else {
-            out.push(a[i]);
-            i += 1;
+            a[k] = b[j - 1];
+            j -= 1;
         }
     }
-    out.extend_from_slice(&a[i..]);
-    out.extend_from_slice(&b[j..]);
-    out
 }
 
 /// A node under construction: its references (global triangle ids), events and voxel.
@@ -312,61 +308,60 @@ impl Sah<'_> {
 
     /// Partitions the node's references and events for `plane` (Wald & Havran §5.3).
     fn split(&self, node: Node, plane: Plane, bad_refines: u32) -> (Node, Node) {
-        const BOTH: u8 = 0;
-        const BELOW: u8 = 1;
-        const ABOVE: u8 = 2;
+        // One word per reference: first its side (`STRADDLES`, `BELOW` or `ABOVE_BIT`), then its
+        // index in the child (with `ABOVE_BIT` set for the above child).
+        const STRADDLES: u32 = u32::MAX;
+        const BELOW: u32 = 0;
+        const ABOVE_BIT: u32 = 1 << 31;
         let (k, pos) = (plane.axis, plane.pos);
         let n = node.triangles.len();
-        let mut side = vec![BOTH; n];
+        let mut code = vec![STRADDLES; n];
         for e in &node.events[k] {
             let r = e.reference();
             match e.kind() {
-                END if e.pos <= pos => side[r] = BELOW,
-                START if e.pos >= pos => side[r] = ABOVE,
-                PLANAR => side[r] = if e.pos < pos || (e.pos == pos && plane.planar_below) { BELOW } else { ABOVE },
+                END if e.pos <= pos => code[r] = BELOW,
+                START if e.pos >= pos => code[r] = ABOVE_BIT,
+                PLANAR => code[r] = if e.pos < pos || (e.pos == pos && plane.planar_below) { BELOW } else { ABOVE_BIT },
                 _ => {}
             }
         }
         let (below_voxel, above_voxel) = node.voxel.split(k, pos);
-        let mut map = [vec![u32::MAX; n], vec![u32::MAX; n]];
-        let mut tris: [Vec<u32>; 2] = [Vec::new(), Vec::new()];
+        let mut tris: [Vec<u32>; 2] = [Vec::with_capacity(plane.below), Vec::with_capacity(plane.above)];
         let mut fresh: [[Vec<Event>; 3]; 2] = Default::default();
-        for r in 0..n {
+        for (r, c) in code.iter_mut().enumerate() {
             let t = node.triangles[r];
-            match side[r] {
-                BELOW | ABOVE => {
-                    let s = (side[r] - 1) as usize;
-                    map[s][r] = tris[s].len() as u32;
-                    tris[s].push(t);
-                }
-                _ => {
-                    // Straddling: clip to each child (perfect splits); a child it misses drops it.
-                    for (s, voxel) in [below_voxel, above_voxel].iter().enumerate() {
-                        if let Some(b) = clipped_box(&self.triangles[t as usize], voxel) {
-                            push_events(&mut fresh[s], tris[s].len(), &b);
-                            tris[s].push(t);
-                        }
+            if *c == STRADDLES {
+                // Clipped to each child (perfect splits); a child it misses drops it.
+                for (s, voxel) in [below_voxel, above_voxel].iter().enumerate() {
+                    if let Some(b) = clipped_box(&self.triangles[t as usize], voxel) {
+                        push_events(&mut fresh[s], tris[s].len(), &b);
+                        tris[s].push(t);
                     }
                 }
+            } else {
+                let s = (*c >> 31) as usize;
+                *c |= tris[s].len() as u32;
+                tris[s].push(t);
             }
         }
         let mut events: [[Vec<Event>; 3]; 2] = Default::default();
         let [old_x, old_y, old_z] = node.events;
         for (axis, old) in [old_x, old_y, old_z].into_iter().enumerate() {
-            let mut kept = [Vec::with_capacity(old.len() / 2), Vec::with_capacity(old.len() / 2)];
-            for e in old {
-                let r = e.reference();
-                let s = side[r];
-                if s != BOTH {
-                    let s = (s - 1) as usize;
-                    kept[s].push(Event { pos: e.pos, key: (map[s][r] << 2) | e.kind() });
+            let mut out = [Vec::with_capacity(old.len().min(2 * tris[0].len())), Vec::with_capacity(old.len().min(2 * tris[1].len()))];
+            for e in &old {
+                let c = code[e.reference()];
+                if c != STRADDLES {
+                    out[(c >> 31) as usize].push(Event { pos: e.pos, key: ((c & !ABOVE_BIT) << 2) | e.kind() });
                 }
             }
-            let [kept_below, kept_above] = kept;
-            for (s, kept) in [kept_below, kept_above].into_iter().enumerate() {
+            drop(old);
+            for (s, mut list) in out.into_iter().enumerate() {
                 let mut new = std::mem::take(&mut fresh[s][axis]);
-                new.sort_unstable_by(order);
-                events[s][axis] = merge(kept, new);
+                if !new.is_empty() {
+                    new.sort_unstable_by(order);
+                    merge_into(&mut list, &new);
+                }
+                events[s][axis] = list;
             }
         }
         let [below_tris, above_tris] = tris;

@@ -1,0 +1,44 @@
+#!/usr/bin/env bash
+# Ray-casting throughput (kdtrace rays): the Aila & Laine triple (primary, ambient occlusion,
+# diffuse) on the CPU path and the GPU kernel, with the short and the full traversal stack, and
+# the persistent-threads vs one-invocation-per-pixel render on the GPU. Side by side in one run;
+# prints Markdown tables for BENCHMARKS.md.
+# Usage: bench/rays.sh [SHARED_SCENES_DIR] [SIZE]   (run scripts/setup.sh first)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+scenes=${1:-../shared/scenes}
+size=${2:-512}
+cargo build --release -q
+bin=target/release/kdtrace
+row='import json,sys
+for line in sys.stdin:
+    j = json.loads(line)
+    ideal = "%.2f" % j["ideal_mrays_per_s"] if j["ideal_mrays_per_s"] else "n/a"
+    ratio = "%.2f" % j["measured_over_ideal"] if j["measured_over_ideal"] else "n/a"
+    print("| %s | %s | %s | %s | %d | %.2f | %.1f | %.1f | %.3f | %s | %s |" % (j["scene"].split("/")[-1], j["adapter"].split(" (")[0], j["traversal"], j["kind"], j["rays"], j["mrays_per_s"], j["nodes_per_ray"], j["tests_per_ray"], j["restarts_per_ray"], ideal, ratio))'
+echo "| scene | device | stack | rays | count | Mrays/s | nodes/ray | tests/ray | restarts/ray | ideal Mrays/s | measured/ideal |"
+echo "|---|---|---|---|---|---|---|---|---|---|---|"
+for mesh in bunny-stanford-bun_zipper/bun_zipper.obj sponza-dabrovic/sponza.obj conference-geometry/conference.obj; do
+  path="$scenes/$mesh"
+  [ -f "$path" ] || { echo "missing $path" >&2; continue; }
+  for device in cpu gpu; do
+    for stack in short full; do
+      $bin rays "$path" --device $device --traversal $stack --width "$size" --height "$size" --json 2>/dev/null | python3 -c "$row"
+    done
+  done
+done
+echo
+echo "| scene | dispatch | stack | render s (GPU, ${size}², 4 spp, 6 bounces) |"
+echo "|---|---|---|---|"
+out=$(mktemp -d)
+for mesh in bunny-stanford-bun_zipper/bun_zipper.obj sponza-dabrovic/sponza.obj; do
+  path="$scenes/$mesh"
+  [ -f "$path" ] || continue
+  $bin render "$path" --out "$out/warm.png" --device gpu --spp 1 --width 8 --height 8 >/dev/null 2>&1
+  for dispatch in plain persistent; do
+    for stack in short full; do
+      s=$($bin render "$path" --out "$out/x.png" --device gpu --dispatch $dispatch --traversal $stack --spp 4 --width "$size" --height "$size" --json 2>/dev/null | python3 -c 'import json,sys; print("%.3f" % json.loads(sys.stdin.read())["render_s"])')
+      echo "| ${mesh%%/*} | $dispatch | $stack | $s |"
+    done
+  done
+done

@@ -9,7 +9,7 @@ use shared::glam::Vec3;
 use shared::layout::{KdNode, Triangle, KD_MAX_DEPTH};
 use shared::vecmath::{axis, xyz};
 
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, serde::Serialize, serde::Deserialize)]
 pub struct BuildSettings {
     /// Maximum depth; 0 picks 8 + 1.3·log2(N), capped at `KD_MAX_DEPTH`.
     pub max_depth: u32,

@@ -10,7 +10,7 @@
 //! | 8 | 4 | format version ([`FORMAT_VERSION`]) |
 //! | 12 | 4 | JSON header length in bytes, a multiple of 16 (space-padded) |
 //! | 16 | 8 | payload length: everything after these 32 bytes |
-//! | 24 | 8 | XXH3-64 of the payload |
+//! | 24 | 8 | XXH3-64 of every other byte of the file (bytes 0..24, then 32..) |
 //! | 32 | … | JSON header: writer, build settings (serde, never listed by hand), scene settings, material names, bounds, section counts |
 //! | … | … | sections, each a packed array of the `shared::layout` struct: triangles, triangle info, materials, lights, k-d nodes, triangle indices |
 //!
@@ -31,7 +31,7 @@ use serde::{Deserialize, Serialize};
 use shared::glam::{Vec3, Vec4};
 use shared::layout::{KdNode, Light, Material, Triangle, TriangleInfo, KD_MAX_DEPTH, MATERIAL_DIFFUSE, NO_LIGHT};
 use std::path::Path;
-use xxhash_rust::xxh3::xxh3_64;
+use xxhash_rust::xxh3::Xxh3;
 
 pub const MAGIC: [u8; 8] = *b"\x89KDC\r\n\x1a\n";
 /// Bump on any change of the layout or of the meaning of a field.
@@ -137,9 +137,18 @@ pub fn write(path: &Path, c: &Compiled, build_settings: &BuildSettings, settings
 /// files to reach the validation behind the checksum). Does nothing to a too-short buffer.
 pub fn seal(bytes: &mut [u8]) {
     if bytes.len() >= FIXED_HEADER {
-        let sum = xxh3_64(&bytes[FIXED_HEADER..]);
+        let sum = checksum(bytes);
         bytes[24..32].copy_from_slice(&sum.to_le_bytes());
     }
+}
+
+/// XXH3-64 of the file without its checksum slot (bytes 24..32). `bytes` holds at least the
+/// fixed header.
+fn checksum(bytes: &[u8]) -> u64 {
+    let mut h = Xxh3::new();
+    h.update(&bytes[..24]);
+    h.update(&bytes[FIXED_HEADER..]);
+    h.digest()
 }
 
 pub fn read(path: &Path) -> Result<KdcScene> {
@@ -182,7 +191,7 @@ pub fn decode(path: &Path, bytes: &[u8]) -> Result<KdcScene> {
         bail!("{name}: {} bytes after the end the header states ({} bytes)", actual - payload_len, payload_len + FIXED_HEADER as u64);
     }
     let stored = u64_at(bytes, 24);
-    let computed = xxh3_64(&bytes[FIXED_HEADER..]);
+    let computed = checksum(bytes);
     if stored != computed {
         bail!("{name}: checksum mismatch (stored {stored:016x}, computed {computed:016x}): the file is corrupted");
     }

@@ -121,9 +121,10 @@ fn crafted_files_are_refused_behind_a_valid_checksum() {
     let node = move |p: &craft::Parts, i: usize| craft::section_offset(p, 4) + 8 * i;
     let first_interior = c.tree.nodes.iter().position(|n| !n.is_leaf()).unwrap();
     let first_leaf = c.tree.nodes.iter().position(|n| n.is_leaf() && n.count() > 0).unwrap();
+    let ax = c.tree.nodes[first_interior].axis();
     let cases: Vec<(&str, Edit)> = vec![
-        ("children", Box::new(move |p| craft::put_u32(p, node(p, first_interior) + 4, 9999 << 2))),
-        ("children", Box::new(move |p| craft::put_u32(p, node(p, first_interior) + 4, (first_interior as u32 + 1) << 2))),
+        ("children", Box::new(move |p| craft::put_u32(p, node(p, first_interior) + 4, ax | (9999 << 2)))),
+        ("children", Box::new(move |p| craft::put_u32(p, node(p, first_interior) + 4, ax | ((first_interior as u32 + 1) << 2)))),
         ("split", Box::new(move |p| craft::put_f32(p, node(p, first_interior), f32::NAN))),
         ("split", Box::new(move |p| craft::put_f32(p, node(p, first_interior), 1e30))),
         ("leaf", Box::new(move |p| craft::put_u32(p, node(p, first_leaf), u32::MAX - 1))),

@@ -219,13 +219,13 @@ fn flags_override_the_scene_file_which_overrides_the_defaults() {
 fn degenerate_geometry_is_dropped_with_a_counted_warning() {
     let dir = tmp_dir("degenerate");
     let obj = dir.join("d.obj");
-    std::fs::write(&obj, "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\nf 1 2 3\nf 1 2 4\nf 1 1 3\np 1 2\nl 1 2 3\n").unwrap();
+    std::fs::write(&obj, "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\nf 1 2 3\nf 1 2 4\nf 1 1 3\np 1 2\nl 1 2 3\nf 1 2\n").unwrap();
     let out = dir.join("d.png");
     let o = kdtrace(&["render", obj.to_str().unwrap(), "--out", out.to_str().unwrap(), "--spp", "1", "--width", "4", "--height", "4", "--json"]);
     let err = stderr(&o);
     assert!(o.status.success(), "{err}");
     assert!(err.contains("d.obj: 2 zero-area triangles dropped"), "{err}");
-    assert!(err.contains("d.obj: 3 point and line elements skipped"), "{err}");
+    assert!(err.contains("d.obj: 4 point and line elements skipped"), "{err}");
     let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!((j["triangles"].as_u64(), j["dropped_degenerate"].as_u64()), (Some(1), Some(2)));
 }

@@ -45,29 +45,52 @@ impl Mesh {
 
 /// What the line scan learns besides rejecting bad vertices.
 struct Scan {
-    /// Point and line elements (tobj is told to ignore them).
+    /// Point and line elements, and faces of fewer than three corners.
     skipped_elements: usize,
+    /// Whether there are `p` or `l` lines: tobj 4 reads an `l` of three or more vertices as a
+    /// polygon, so they are blanked out before tobj sees the text.
+    has_point_or_line_statements: bool,
 }
 
 /// Checks every `v` line for three finite, representable coordinates and counts `p`/`l`
 /// elements.
 fn scan_lines(path: &Path, text: &str) -> Result<Scan> {
-    let mut scan = Scan { skipped_elements: 0 };
+    let mut scan = Scan { skipped_elements: 0, has_point_or_line_statements: false };
+    let mut vertices = 0i64;
     for (number, line) in text.lines().enumerate() {
         let mut words = line.split_whitespace();
         match words.next() {
-            Some("v") => {}
+            Some("v") => vertices += 1,
+            Some("f") => {
+                // Each corner is v, v/vt, v//vn or v/vt/vn; v counts from 1, or back from the
+                // latest vertex when negative (so it must name a vertex defined above).
+                let corners: Vec<&str> = words.collect();
+                if corners.len() < 3 {
+                    scan.skipped_elements += 1;
+                }
+                for corner in corners {
+                    let v = corner.split('/').next().unwrap_or("");
+                    let Ok(i) = v.parse::<i64>() else { continue };
+                    if i == 0 || i > vertices || i < -vertices {
+                        bail!("{}:{}: face vertex index {i} out of range ({vertices} vertices defined above)", path.display(), number + 1);
+                    }
+                }
+                continue;
+            }
             Some("p") => {
                 scan.skipped_elements += words.count();
+                scan.has_point_or_line_statements = true;
                 continue;
             }
             Some("l") => {
                 scan.skipped_elements += 1;
+                scan.has_point_or_line_statements = true;
                 continue;
             }
             _ => continue,
         }
         let coords: Vec<&str> = words.take(3).collect();
+        // (`vertices` already counts this line.)
         if coords.len() < 3 {
             bail!("{}:{}: vertex needs 3 coordinates: {line:?}", path.display(), number + 1);
         }
@@ -79,6 +102,18 @@ fn scan_lines(path: &Path, text: &str) -> Result<Scan> {
         }
     }
     Ok(scan)
+}
+
+/// The text with every `p` and `l` statement replaced by an empty line (line numbers kept).
+fn without_points_and_lines(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    for line in text.lines() {
+        if !matches!(line.split_whitespace().next(), Some("p" | "l")) {
+            out.push_str(line);
+        }
+        out.push('\n');
+    }
+    out
 }
 
 /// Loads an OBJ file as a scene of its own.
@@ -105,6 +140,7 @@ pub fn parse_mesh(path: &Path, bytes: &[u8], files: &dyn Files) -> Result<Mesh> 
     // replacement characters only ever land in names and comments.
     let text = String::from_utf8_lossy(bytes);
     let scan = scan_lines(path, &text)?;
+    let text = if scan.has_point_or_line_statements { without_points_and_lines(&text).into() } else { text };
     let dir = path.parent().unwrap_or(Path::new(""));
     let mut warnings = Vec::new();
     // tobj merges the libraries in the order it meets them; remember which file each range of

@@ -125,7 +125,7 @@ fn crafted_files_are_refused_behind_a_valid_checksum() {
         ("children", Box::new(move |p| craft::put_u32(p, node(p, first_interior) + 4, ax | (9999 << 2)))),
         ("children", Box::new(move |p| craft::put_u32(p, node(p, first_interior) + 4, ax | ((first_interior as u32 + 1) << 2)))),
         ("split", Box::new(move |p| craft::put_f32(p, node(p, first_interior), f32::NAN))),
-        ("split", Box::new(move |p| craft::put_f32(p, node(p, first_interior), 1e30))),
+        ("split", Box::new(move |p| craft::put_f32(p, node(p, first_interior), f32::INFINITY))),
         ("leaf", Box::new(move |p| craft::put_u32(p, node(p, first_leaf), u32::MAX - 1))),
         ("leaf", Box::new(move |p| craft::put_u32(p, node(p, first_leaf) + 4, 3 | (1 << 29)))),
         ("triangle index", Box::new(|p| { let at = craft::section_offset(p, 5); craft::put_u32(p, at, 1 << 20) })),

@@ -21,8 +21,8 @@ for target in $(cargo fuzz list); do
       -max_total_time="$seconds" -max_len=16384 -timeout=10 -rss_limit_mb=4096 -print_final_stats=1 >"$log" 2>&1; then
     echo "   no crash"
   else
-    echo "   FINDING: see fuzz/artifacts/$target/ and the log below"
-    tail -40 "$log"
+    echo "   FINDING: $(grep -m1 -o 'artifacts/[^ ]*' "$log" || echo "see fuzz/artifacts/$target/")"
+    grep -m1 -A1 "panicked at\|ERROR: libFuzzer" "$log" | sed 's/^/   /' || tail -20 "$log"
     status=1
   fi
   grep -E "stat::number_of_executed_units|stat::peak_rss_mb|cov: .*corp:" "$log" | tail -3 | sed 's/^/   /'

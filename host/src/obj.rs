@@ -104,6 +104,20 @@ fn scan_lines(path: &Path, text: &str) -> Result<Scan> {
     Ok(scan)
 }
 
+/// Checks that every colour statement (`Ka`, `Kd`, `Ks`, `Ke`) has three numbers: tobj 4
+/// panics on fewer (found by the `obj_mtl` fuzz target), and a line number helps anyway.
+fn check_mtl_lines(path: &Path, text: &str) -> Result<()> {
+    for (number, line) in text.lines().enumerate() {
+        let mut words = line.split_whitespace();
+        let Some(key @ ("Ka" | "Kd" | "Ks" | "Ke")) = words.next() else { continue };
+        let values: Vec<&str> = words.take(3).collect();
+        if values.len() < 3 || values.iter().any(|v| v.parse::<f32>().is_err()) {
+            bail!("{}:{}: {key} needs three numbers: {line:?}", path.display(), number + 1);
+        }
+    }
+    Ok(())
+}
+
 /// The text with every `p` and `l` statement replaced by an empty line (line numbers kept).
 fn without_points_and_lines(text: &str) -> String {
     let mut out = String::with_capacity(text.len());
@@ -161,7 +175,12 @@ pub fn parse_mesh(path: &Path, bytes: &[u8], files: &dyn Files) -> Result<Mesh> 
                 return Err(tobj::LoadError::OpenFileFailed);
             }
         };
-        let result = tobj::load_mtl_buf(&mut Cursor::new(String::from_utf8_lossy(&bytes).as_bytes()));
+        let text = String::from_utf8_lossy(&bytes);
+        if let Err(e) = check_mtl_lines(&full, &text) {
+            problems.borrow_mut().push(e);
+            return Err(tobj::LoadError::MaterialParseError);
+        }
+        let result = tobj::load_mtl_buf(&mut Cursor::new(text.as_bytes()));
         match &result {
             Ok((mats, _)) => libraries.borrow_mut().push((full, mats.len())),
             Err(e) => problems.borrow_mut().push(anyhow!("{}: material library: {e}", full.display())),

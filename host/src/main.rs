@@ -1,10 +1,10 @@
-//! The `kdtrace` command line: `render`, `verify`, `adapters`.
+//! The `kdtrace` command line: `render`, `verify`, `export`, `compile`, `adapters`.
 use anyhow::Result;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
-use kdtrace::camera::Camera;
 use kdtrace::render::{Aov, Compiled, Dispatch, RenderSettings, Rendered, Traversal};
-use kdtrace::{cpu, gpu, image_io, kdbuild, verify};
+use kdtrace::scene_settings::SceneSettings;
+use kdtrace::{cpu, gpu, image_io, kdbuild, kdc, scene_file, verify, Loaded, SceneKind};
 use serde_json::json;
 use shared::glam::Vec3;
 use std::path::PathBuf;
@@ -25,10 +25,14 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Render an OBJ scene to PNG (sRGB) or EXR (linear).
+    /// Render a scene (.obj, .toml or .kdc) to PNG (sRGB) or EXR (linear).
     Render(RenderArgs),
     /// Render on the CPU and the GPU with the same seed and report how well they agree.
     Verify(VerifyArgs),
+    /// Write a scene (.obj or .toml) as a TOML scene file stating every render setting.
+    Export(ExportArgs),
+    /// Parse a scene, build its k-d tree and write both to one binary .kdc file.
+    Compile(CompileArgs),
     /// List the GPU adapters wgpu can use.
     Adapters,
     /// Build a scene's k-d tree and report its statistics (and check it with --validate).
@@ -129,20 +133,25 @@ enum Device {
     Gpu,
 }
 
+/// Image options. Each one given overrides the scene file; unset ones come from the scene file,
+/// then from the built-in defaults (`kdtrace::scene_settings`).
 #[derive(Args, Clone)]
 struct ImageArgs {
-    /// Samples per pixel.
-    #[arg(long, default_value_t = 64)]
-    spp: u32,
-    #[arg(long, default_value_t = 512)]
-    width: u32,
-    #[arg(long, default_value_t = 512)]
-    height: u32,
-    /// Indirect bounces (0 = direct light only).
-    #[arg(long, default_value_t = 6)]
-    bounces: u32,
-    #[arg(long, default_value_t = 0)]
-    seed: u32,
+    /// Samples per pixel [scene file, else 64].
+    #[arg(long)]
+    spp: Option<u32>,
+    /// [scene file, else 512]
+    #[arg(long)]
+    width: Option<u32>,
+    /// [scene file, else 512]
+    #[arg(long)]
+    height: Option<u32>,
+    /// Indirect bounces, 0 = direct light only [scene file, else 6].
+    #[arg(long)]
+    bounces: Option<u32>,
+    /// [scene file, else 0]
+    #[arg(long)]
+    seed: Option<u32>,
     /// Camera position x,y,z (default: frame the scene's box from +Z).
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
     eye: Option<Vec3>,
@@ -204,37 +213,39 @@ fn parse_vec3(s: &str) -> Result<Vec3, String> {
     Ok(Vec3::from(v))
 }
 
-fn settings(a: &ImageArgs, c: &Compiled) -> Result<RenderSettings> {
-    let aspect = a.width.max(1) as f32 / a.height.max(1) as f32;
-    let mut camera = Camera::frame_bounds(c.tree.bounds_min, c.tree.bounds_max, aspect);
-    if let Some(e) = a.eye {
-        camera.eye = e;
-    }
-    if let Some(t) = a.target {
-        camera.target = t;
-    }
-    if let Some(u) = a.up {
-        camera.up = u;
-    }
-    if let Some(f) = a.fov {
-        camera.fov_deg = f;
-    }
-    let s = RenderSettings {
+/// The flags as scene settings (unset flags stay unset).
+fn flag_settings(a: &ImageArgs) -> SceneSettings {
+    SceneSettings {
         width: a.width,
         height: a.height,
         spp: a.spp,
-        max_bounces: a.bounces,
+        bounces: a.bounces,
         seed: a.seed,
-        rr_start: 5,
-        environment: Vec3::ZERO,
-        camera,
-        traversal: a.traversal,
-        dispatch: a.dispatch,
-        aov: a.aov,
-    };
-    s.check()?;
-    camera.basis(aspect)?;
+        eye: a.eye.map(|v| v.to_array()),
+        target: a.target.map(|v| v.to_array()),
+        up: a.up.map(|v| v.to_array()),
+        fov_deg: a.fov,
+        ..Default::default()
+    }
+}
+
+/// Flags over the scene's own settings over the defaults.
+fn settings(a: &ImageArgs, loaded: &Loaded) -> Result<RenderSettings> {
+    let c = &loaded.compiled;
+    let mut s = loaded.settings.overridden_by(&flag_settings(a)).resolve(c.tree.bounds_min, c.tree.bounds_max)?;
+    s.traversal = a.traversal;
+    s.dispatch = a.dispatch;
+    s.aov = a.aov;
     Ok(s)
+}
+
+/// Loads a scene with the default build settings and reports its warnings on stderr.
+fn load(path: &std::path::Path) -> Result<Loaded> {
+    let loaded = kdtrace::load(path, kdbuild::BuildSettings::default())?;
+    for w in &loaded.warnings {
+        eprintln!("warning: {w}");
+    }
+    Ok(loaded)
 }
 
 fn progress_bar(quiet: bool, label: &str) -> ProgressBar {
@@ -272,9 +283,9 @@ fn run_device(device: Device, c: &Compiled, s: &RenderSettings, a: &ImageArgs) -
 
 fn render(r: RenderArgs) -> Result<ExitCode> {
     image_io::check_output_path(&r.out)?;
-    let loaded = kdtrace::load(&r.scene, kdbuild::BuildSettings::default())?;
+    let loaded = load(&r.scene)?;
     let c = &loaded.compiled;
-    let s = settings(&r.image, c)?;
+    let s = settings(&r.image, &loaded)?;
     let (img, adapter, render_s) = run_device(r.device, c, &s, &r.image)?;
     let pixels = img.mean();
     if s.aov == Aov::Cost && !image_io::is_exr(&r.out) {
@@ -314,9 +325,9 @@ fn render(r: RenderArgs) -> Result<ExitCode> {
 }
 
 fn verify(v: VerifyArgs) -> Result<ExitCode> {
-    let loaded = kdtrace::load(&v.scene, kdbuild::BuildSettings::default())?;
+    let loaded = load(&v.scene)?;
     let c = &loaded.compiled;
-    let s = settings(&v.image, c)?;
+    let s = settings(&v.image, &loaded)?;
     let (cpu_img, cpu_name, cpu_s) = run_device(Device::Cpu, c, &s, &v.image)?;
     let (gpu_img, gpu_name, gpu_s) = run_device(Device::Gpu, c, &s, &v.image)?;
     let a = verify::compare(&cpu_img, &gpu_img);
@@ -368,9 +379,9 @@ fn tree(t: TreeArgs) -> Result<ExitCode> {
 
 fn rays(r: RaysArgs) -> Result<ExitCode> {
     use kdtrace::raybench::{band_samples, fit_costs, make_rays, measure, RayKind};
-    let loaded = kdtrace::load(&r.scene, kdbuild::BuildSettings::default())?;
+    let loaded = load(&r.scene)?;
     let c = &loaded.compiled;
-    let s = settings(&r.image, c)?;
+    let s = settings(&r.image, &loaded)?;
     let g = match r.device {
         Device::Gpu => Some(gpu::Gpu::open(r.image.adapter.as_deref())?),
         Device::Cpu => None,
@@ -403,6 +414,69 @@ fn rays(r: RaysArgs) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+#[derive(Args)]
+struct ExportArgs {
+    scene: PathBuf,
+    /// The TOML scene file to write (mesh paths are written relative to it).
+    #[arg(long)]
+    out: PathBuf,
+}
+
+fn export(e: ExportArgs) -> Result<ExitCode> {
+    if SceneKind::of(&e.out).ok() != Some(SceneKind::Toml) {
+        anyhow::bail!("{}: export writes a .toml scene file", e.out.display());
+    }
+    let file = match SceneKind::of(&e.scene)? {
+        SceneKind::Kdc => anyhow::bail!("{}: a compiled scene keeps no mesh files and cannot be exported; export the scene it was compiled from", e.scene.display()),
+        SceneKind::Obj => scene_file::for_obj(&e.scene),
+        SceneKind::Toml => {
+            let text = std::fs::read_to_string(&e.scene).map_err(|err| anyhow::anyhow!("{}: cannot read: {err}", e.scene.display()))?;
+            scene_file::parse(&e.scene, &text)?
+        }
+    };
+    // Loading checks every mesh and resolves the camera framing that the file may leave open.
+    let loaded = load(&e.scene)?;
+    let c = &loaded.compiled;
+    let resolved = loaded.settings.resolve(c.tree.bounds_min, c.tree.bounds_max)?;
+    let mut file = scene_file::with_settings(file, &SceneSettings::pinned(&resolved, loaded.settings.time_limit_s))?;
+    scene_file::rebase_meshes(&mut file, &e.scene, &e.out)?;
+    let comment = format!("kdtrace scene file, written by `kdtrace export` from {}.\nSchema: README.md, \"Scene files\".", e.scene.display());
+    let text = scene_file::to_toml(&file, &comment)?;
+    std::fs::write(&e.out, text).map_err(|err| anyhow::anyhow!("{}: cannot write: {err}", e.out.display()))?;
+    eprintln!("{}: {} meshes, {} triangles", e.out.display(), file.meshes.len(), c.scene.triangles.len());
+    Ok(ExitCode::SUCCESS)
+}
+
+#[derive(Args)]
+struct CompileArgs {
+    scene: PathBuf,
+    /// The .kdc file to write.
+    #[arg(long)]
+    out: PathBuf,
+    /// Print one JSON line to stdout.
+    #[arg(long)]
+    json: bool,
+}
+
+fn compile(a: CompileArgs) -> Result<ExitCode> {
+    if SceneKind::of(&a.out).ok() != Some(SceneKind::Kdc) {
+        anyhow::bail!("{}: compile writes a .kdc file", a.out.display());
+    }
+    let build = kdbuild::BuildSettings::default();
+    let loaded = load(&a.scene)?;
+    let t = Instant::now();
+    kdc::write(&a.out, &loaded.compiled, &build, &loaded.settings)?;
+    let write_s = t.elapsed().as_secs_f64();
+    let c = &loaded.compiled;
+    let bytes = std::fs::metadata(&a.out).map(|m| m.len()).unwrap_or(0);
+    if a.json {
+        println!("{}", json!({ "scene": a.scene, "out": a.out, "triangles": c.scene.triangles.len(), "nodes": c.tree.nodes.len(), "bytes": bytes, "load_s": loaded.load_s, "build_s": loaded.build_s, "write_s": write_s }));
+    } else {
+        eprintln!("{}: {} triangles, {} nodes, {bytes} bytes (load {:.3} s, build {:.3} s, write {write_s:.3} s)", a.out.display(), c.scene.triangles.len(), c.tree.nodes.len(), loaded.load_s, loaded.build_s);
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
@@ -410,6 +484,8 @@ fn main() -> ExitCode {
         Command::Verify(v) => verify(v),
         Command::Tree(t) => tree(t),
         Command::Rays(r) => rays(r),
+        Command::Export(e) => export(e),
+        Command::Compile(c) => compile(c),
         Command::Adapters => {
             for a in gpu::adapters() {
                 println!("{} ({:?}, {:?}, driver {} {})", a.name, a.device_type, a.backend, a.driver, a.driver_info);

@@ -2,26 +2,95 @@
 //! diffuse albedo, `Ke` the one-sided emission; a mesh without a material is grey diffuse.
 //!
 //! tobj accepts `nan`, `inf` and `1e39` coordinates and reports errors without a line, so the
-//! vertex lines are checked here first, and every error names the file (and line where it can).
+//! vertex lines are checked here first, and every error names the file (and line where it can):
+//! the OBJ, or the MTL library a material or texture came from. Point (`p`) and line (`l`)
+//! elements are skipped and counted; zero-area triangles are dropped and counted by
+//! [`Scene::new`]. Both counts come back as warnings, never silently.
+//!
+//! Format reference: Wavefront's "Object Files (.obj)" and "MTL material format" appendices
+//! (<https://paulbourke.net/dataformats/obj/>, <https://paulbourke.net/dataformats/mtl/>).
+use crate::files::{Disk, Files};
 use crate::scene::{diffuse, Scene};
 use anyhow::{anyhow, bail, Context, Result};
 use shared::glam::{Vec3, Vec4};
-use shared::layout::Triangle;
-use std::path::Path;
+use shared::layout::{Material, Triangle};
+use std::cell::RefCell;
+use std::io::{Cursor, ErrorKind};
+use std::path::{Path, PathBuf};
 
 /// Albedo of meshes that have no material (Mitsuba's `diffuse` default).
 pub const DEFAULT_ALBEDO: f32 = 0.5;
 /// Coordinates beyond this are rejected: squared distances would overflow f32.
 pub const MAX_COORDINATE: f32 = 1e18;
 
-/// Checks every `v` line for three finite, representable coordinates.
-fn check_vertex_lines(path: &Path, text: &str) -> Result<()> {
+/// One OBJ file's triangles with a material each, before they become (part of) a scene.
+#[derive(Clone, Debug)]
+pub struct Mesh {
+    pub triangles: Vec<Triangle>,
+    /// Per triangle, an index into `materials`.
+    pub material_of: Vec<u32>,
+    /// The MTL materials in library order, then the grey default (always last).
+    pub materials: Vec<Material>,
+    pub material_names: Vec<String>,
+    /// Things the user should know that do not stop the load (missing MTL, skipped elements).
+    pub warnings: Vec<String>,
+}
+
+impl Mesh {
+    /// Index of the grey default material (for faces without `usemtl`).
+    pub fn default_material(&self) -> u32 {
+        self.materials.len() as u32 - 1
+    }
+}
+
+/// What the line scan learns besides rejecting bad vertices.
+struct Scan {
+    /// Point and line elements, and faces of fewer than three corners.
+    skipped_elements: usize,
+    /// Whether there are `p` or `l` lines: tobj 4 reads an `l` of three or more vertices as a
+    /// polygon, so they are blanked out before tobj sees the text.
+    has_point_or_line_statements: bool,
+}
+
+/// Checks every `v` line for three finite, representable coordinates and counts `p`/`l`
+/// elements.
+fn scan_lines(path: &Path, text: &str) -> Result<Scan> {
+    let mut scan = Scan { skipped_elements: 0, has_point_or_line_statements: false };
+    let mut vertices = 0i64;
     for (number, line) in text.lines().enumerate() {
         let mut words = line.split_whitespace();
-        if words.next() != Some("v") {
-            continue;
+        match words.next() {
+            Some("v") => vertices += 1,
+            Some("f") => {
+                // Each corner is v, v/vt, v//vn or v/vt/vn; v counts from 1, or back from the
+                // latest vertex when negative (so it must name a vertex defined above).
+                let corners: Vec<&str> = words.collect();
+                if corners.len() < 3 {
+                    scan.skipped_elements += 1;
+                }
+                for corner in corners {
+                    let v = corner.split('/').next().unwrap_or("");
+                    let Ok(i) = v.parse::<i64>() else { continue };
+                    if i == 0 || i > vertices || i < -vertices {
+                        bail!("{}:{}: face vertex index {i} out of range ({vertices} vertices defined above)", path.display(), number + 1);
+                    }
+                }
+                continue;
+            }
+            Some("p") => {
+                scan.skipped_elements += words.count();
+                scan.has_point_or_line_statements = true;
+                continue;
+            }
+            Some("l") => {
+                scan.skipped_elements += 1;
+                scan.has_point_or_line_statements = true;
+                continue;
+            }
+            _ => continue,
         }
         let coords: Vec<&str> = words.take(3).collect();
+        // (`vertices` already counts this line.)
         if coords.len() < 3 {
             bail!("{}:{}: vertex needs 3 coordinates: {line:?}", path.display(), number + 1);
         }
@@ -32,35 +101,132 @@ fn check_vertex_lines(path: &Path, text: &str) -> Result<()> {
             }
         }
     }
+    Ok(scan)
+}
+
+/// Checks that every colour statement (`Ka`, `Kd`, `Ks`, `Ke`) has three numbers: tobj 4
+/// panics on fewer (found by the `obj_mtl` fuzz target), and a line number helps anyway.
+fn check_mtl_lines(path: &Path, text: &str) -> Result<()> {
+    for (number, line) in text.lines().enumerate() {
+        let mut words = line.split_whitespace();
+        let Some(key @ ("Ka" | "Kd" | "Ks" | "Ke")) = words.next() else { continue };
+        let values: Vec<&str> = words.take(3).collect();
+        if values.len() < 3 || values.iter().any(|v| v.parse::<f32>().is_err()) {
+            bail!("{}:{}: {key} needs three numbers: {line:?}", path.display(), number + 1);
+        }
+    }
     Ok(())
 }
 
-pub fn load_obj(path: &Path) -> Result<Scene> {
-    let text = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
-    check_vertex_lines(path, &String::from_utf8_lossy(&text))?;
-    let options = tobj::LoadOptions { triangulate: true, single_index: false, ignore_points: true, ignore_lines: true, ..Default::default() };
-    let (models, materials) = tobj::load_obj(path, &options).map_err(|e| anyhow!("{}: {e}", path.display()))?;
-    let mtl = match materials {
-        Ok(m) => m,
-        // A missing MTL file degrades to grey; a broken one is an error.
-        Err(tobj::LoadError::OpenFileFailed) => {
-            eprintln!("warning: {}: material library not found; using grey diffuse", path.display());
-            Vec::new()
+/// The text with every `p` and `l` statement replaced by an empty line (line numbers kept).
+fn without_points_and_lines(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    for line in text.lines() {
+        if !matches!(line.split_whitespace().next(), Some("p" | "l")) {
+            out.push_str(line);
         }
-        Err(e) => bail!("{}: material library: {e}", path.display()),
+        out.push('\n');
+    }
+    out
+}
+
+/// Loads an OBJ file as a scene of its own.
+pub fn load_obj(path: &Path) -> Result<Scene> {
+    let mesh = load_mesh(path, &Disk)?;
+    Scene::new(mesh.triangles, mesh.material_of, mesh.materials, mesh.material_names).with_context(|| format!("{}", path.display()))
+}
+
+/// Reads and parses an OBJ file and the MTL libraries it names.
+pub fn load_mesh(path: &Path, files: &dyn Files) -> Result<Mesh> {
+    let bytes = files.read(path).map_err(|e| anyhow!("{}: cannot read: {e}", path.display()))?;
+    parse_mesh(path, &bytes, files)
+}
+
+/// The texture file named by an MTL `map_*` value: its last word (options such as `-bm 1` come
+/// first).
+fn texture_file(value: &str) -> Option<&str> {
+    value.split_whitespace().last()
+}
+
+/// Parses OBJ text; `path` names it in messages and locates the MTL libraries through `files`.
+pub fn parse_mesh(path: &Path, bytes: &[u8], files: &dyn Files) -> Result<Mesh> {
+    // tobj reads lines as UTF-8 and fails the whole file on one bad byte; OBJ is ASCII, so
+    // replacement characters only ever land in names and comments.
+    let text = String::from_utf8_lossy(bytes);
+    let scan = scan_lines(path, &text)?;
+    let text = if scan.has_point_or_line_statements { without_points_and_lines(&text).into() } else { text };
+    let dir = path.parent().unwrap_or(Path::new(""));
+    let mut warnings = Vec::new();
+    // tobj merges the libraries in the order it meets them; remember which file each range of
+    // materials came from so that errors can name it.
+    let libraries: RefCell<Vec<(PathBuf, usize)>> = RefCell::new(Vec::new());
+    let problems: RefCell<Vec<anyhow::Error>> = RefCell::new(Vec::new());
+    let missing: RefCell<Vec<PathBuf>> = RefCell::new(Vec::new());
+    let loader = |name: &Path| -> tobj::MTLLoadResult {
+        let full = dir.join(name);
+        let bytes = match files.read(&full) {
+            Ok(b) => b,
+            Err(e) if e.kind() == ErrorKind::NotFound => {
+                missing.borrow_mut().push(full);
+                return Err(tobj::LoadError::OpenFileFailed);
+            }
+            Err(e) => {
+                problems.borrow_mut().push(anyhow!("{}: cannot read material library: {e}", full.display()));
+                return Err(tobj::LoadError::OpenFileFailed);
+            }
+        };
+        let text = String::from_utf8_lossy(&bytes);
+        if let Err(e) = check_mtl_lines(&full, &text) {
+            problems.borrow_mut().push(e);
+            return Err(tobj::LoadError::MaterialParseError);
+        }
+        let result = tobj::load_mtl_buf(&mut Cursor::new(text.as_bytes()));
+        match &result {
+            Ok((mats, _)) => libraries.borrow_mut().push((full, mats.len())),
+            Err(e) => problems.borrow_mut().push(anyhow!("{}: material library: {e}", full.display())),
+        }
+        result
     };
+    let options = tobj::LoadOptions { triangulate: true, single_index: false, ignore_points: true, ignore_lines: true, ..Default::default() };
+    let (models, materials) = tobj::load_obj_buf(&mut Cursor::new(text.as_bytes()), &options, loader).map_err(|e| anyhow!("{}: {e}", path.display()))?;
+    if let Some(e) = problems.into_inner().into_iter().next() {
+        return Err(e.context(format!("{}: loading its material libraries", path.display())));
+    }
+    for m in missing.into_inner() {
+        warnings.push(format!("{}: material library not found ({}); its materials are grey diffuse", path.display(), m.display()));
+    }
+    // A library that failed to open leaves `Err` here only when no other library loaded.
+    let mtl = materials.unwrap_or_default();
+    let mut source = Vec::with_capacity(mtl.len());
+    for (file, count) in libraries.into_inner() {
+        source.extend(std::iter::repeat_n(file, count));
+    }
     let mut mats = Vec::with_capacity(mtl.len() + 1);
     let mut names = Vec::with_capacity(mtl.len() + 1);
-    for m in &mtl {
+    let mut textures = 0;
+    for (i, m) in mtl.iter().enumerate() {
+        let library = source.get(i).map(|p| p.as_path()).unwrap_or(path);
         let kd = m.diffuse.unwrap_or([DEFAULT_ALBEDO; 3]);
         let ke = m.emissive.unwrap_or([0.0; 3]);
         for (what, v) in [("Kd", kd), ("Ke", ke)] {
-            if v.iter().any(|x| !x.is_finite() || *x < 0.0) {
-                bail!("{}: material {:?}: {what} {v:?} must be finite and non-negative", path.display(), m.name);
+            if v.iter().any(|x| !x.is_finite() || *x < 0.0 || *x > MAX_COORDINATE) {
+                bail!("{}: material {:?}: {what} {v:?} must be finite and non-negative", library.display(), m.name);
             }
+        }
+        let maps = [&m.diffuse_texture, &m.ambient_texture, &m.specular_texture, &m.normal_texture, &m.shininess_texture, &m.dissolve_texture];
+        for value in maps.into_iter().flatten() {
+            let Some(file) = texture_file(value) else { continue };
+            let full = library.parent().unwrap_or(Path::new("")).join(file);
+            if !files.exists(&full) {
+                bail!("{}: material {:?}: texture {file:?} not found ({})", library.display(), m.name, full.display());
+            }
+            textures += 1;
         }
         mats.push(diffuse(Vec3::from(kd), Vec3::from(ke)));
         names.push(m.name.clone());
+    }
+    if textures > 0 {
+        warnings.push(format!("{}: {textures} texture maps ignored (textures are not supported yet; Kd is used)", path.display()));
     }
     let default_material = mats.len() as u32;
     mats.push(diffuse(Vec3::splat(DEFAULT_ALBEDO), Vec3::ZERO));
@@ -76,10 +242,10 @@ pub fn load_obj(path: &Path) -> Result<Scene> {
         };
         let vertex = |i: u32| -> Result<Vec4> {
             let i = i as usize;
-            if 3 * i + 2 >= mesh.positions.len() {
-                bail!("{}: object {:?}: vertex index {} out of range", path.display(), model.name, i + 1);
+            match mesh.positions.get(3 * i..3 * i + 3) {
+                Some(p) => Ok(Vec4::new(p[0], p[1], p[2], 0.0)),
+                None => bail!("{}: object {:?}: vertex index {} out of range ({} vertices)", path.display(), model.name, i + 1, mesh.positions.len() / 3),
             }
-            Ok(Vec4::new(mesh.positions[3 * i], mesh.positions[3 * i + 1], mesh.positions[3 * i + 2], 0.0))
         };
         for f in mesh.indices.chunks_exact(3) {
             triangles.push(Triangle { v0: vertex(f[0])?, v1: vertex(f[1])?, v2: vertex(f[2])? });
@@ -89,5 +255,8 @@ pub fn load_obj(path: &Path) -> Result<Scene> {
     if triangles.is_empty() {
         bail!("{}: no triangles", path.display());
     }
-    Scene::new(triangles, material_of, mats, names).with_context(|| format!("{}", path.display()))
+    if scan.skipped_elements > 0 {
+        warnings.push(format!("{}: {} point and line elements skipped (only faces are rendered)", path.display(), scan.skipped_elements));
+    }
+    Ok(Mesh { triangles, material_of, materials: mats, material_names: names, warnings })
 }

@@ -1,0 +1,599 @@
+//! The human-written scene file (TOML): camera, render settings, materials, meshes with
+//! transforms and material overrides, environment colour. The schema with an example is in the
+//! README ("Scene files"); the types below are that schema.
+//!
+//! TOML (<https://toml.io/en/v1.0.0>) rather than RON: it is what Cargo users already write,
+//! it has comments, and its parser reports every error with a byte span, which becomes
+//! `file:line:column` here. Unknown keys are errors (`deny_unknown_fields`), so a typo never
+//! silently falls back to a default. Every number is checked while it is read (finite, in range),
+//! and those checks carry the span of the offending value as well.
+use crate::files::Files;
+use crate::obj::{self, DEFAULT_ALBEDO, MAX_COORDINATE};
+use crate::render::{MAX_SIDE, MAX_SPP};
+use crate::scene::{diffuse, Scene};
+use crate::scene_settings::SceneSettings;
+use crate::transform::Placement;
+use anyhow::{anyhow, bail, Context, Result};
+use serde::{Deserialize, Serialize};
+use shared::glam::Vec3;
+use shared::layout::Material;
+use std::collections::BTreeMap;
+use std::ops::Range;
+use std::path::{Component, Path, PathBuf};
+use toml::Spanned;
+
+/// Largest bounce count accepted (as `RenderSettings::check`).
+pub const MAX_BOUNCES: u32 = 1024;
+
+/// A whole scene file.
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneFile {
+    /// Radiance of rays that leave the scene, linear RGB (default black).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub environment: Option<Color>,
+    #[serde(default)]
+    pub camera: CameraSection,
+    #[serde(default)]
+    pub render: RenderSection,
+    /// Named materials that meshes refer to.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub materials: BTreeMap<String, MaterialSection>,
+    #[serde(rename = "mesh", default)]
+    pub meshes: Vec<MeshSection>,
+}
+
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraSection {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub eye: Option<Point>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub target: Option<Point>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub up: Option<Point>,
+    /// Vertical field of view in degrees.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fov: Option<Fov>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub width: Option<Side>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub height: Option<Side>,
+}
+
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RenderSection {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spp: Option<Spp>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bounces: Option<Bounces>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub seed: Option<u32>,
+    /// Seconds; stored and validated, honoured once `--time-limit` lands.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time_limit: Option<Seconds>,
+}
+
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialSection {
+    #[serde(rename = "type", default)]
+    pub kind: MaterialKind,
+    /// Diffuse reflectance, linear RGB in 0..=1 (default 0.5 grey).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub albedo: Option<Albedo>,
+    /// Emitted radiance from the front (counter-clockwise) side, linear RGB (default none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub emission: Option<Color>,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MeshSection {
+    /// OBJ file, relative to the scene file.
+    pub file: Spanned<String>,
+    /// Uniform factor or per-axis [x, y, z]; applied first.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scale: Option<Scale>,
+    /// Degrees about the world x, then y, then z axis; applied second.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rotate: Option<Point>,
+    /// Applied last.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub translate: Option<Point>,
+    /// A scene material for the whole mesh.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub material: Option<Spanned<String>>,
+    /// MTL material name → scene material; wins over `material` for those faces. The name
+    /// `default` stands for faces without `usemtl`.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub materials: BTreeMap<String, Spanned<String>>,
+}
+
+// ---- Values checked while they are read (the error then carries the value's line:column). ----
+
+fn check_coordinate(what: &str, x: f64) -> Result<f32, String> {
+    if !x.is_finite() || x.abs() > MAX_COORDINATE as f64 {
+        return Err(format!("{what} {x} is not finite or beyond ±{MAX_COORDINATE:e}"));
+    }
+    Ok(x as f32)
+}
+
+/// A finite point or vector, each component within ±1e18.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "[f64; 3]", into = "[f64; 3]")]
+pub struct Point(pub [f64; 3]);
+
+impl TryFrom<[f64; 3]> for Point {
+    type Error = String;
+    fn try_from(v: [f64; 3]) -> Result<Self, String> {
+        for x in v {
+            check_coordinate("coordinate", x)?;
+        }
+        Ok(Self(v))
+    }
+}
+
+impl From<Point> for [f64; 3] {
+    fn from(p: Point) -> Self {
+        p.0
+    }
+}
+
+impl Point {
+    pub fn vec3(self) -> Vec3 {
+        Vec3::new(self.0[0] as f32, self.0[1] as f32, self.0[2] as f32)
+    }
+}
+
+/// Linear RGB radiance: finite, non-negative.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "[f64; 3]", into = "[f64; 3]")]
+pub struct Color(pub [f64; 3]);
+
+impl TryFrom<[f64; 3]> for Color {
+    type Error = String;
+    fn try_from(v: [f64; 3]) -> Result<Self, String> {
+        if v.iter().any(|x| !x.is_finite() || *x < 0.0 || *x > MAX_COORDINATE as f64) {
+            return Err(format!("colour {v:?} must be finite and non-negative"));
+        }
+        Ok(Self(v))
+    }
+}
+
+impl From<Color> for [f64; 3] {
+    fn from(c: Color) -> Self {
+        c.0
+    }
+}
+
+/// Reflectance: each channel within 0..=1 (more would create energy).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "[f64; 3]", into = "[f64; 3]")]
+pub struct Albedo(pub [f64; 3]);
+
+impl TryFrom<[f64; 3]> for Albedo {
+    type Error = String;
+    fn try_from(v: [f64; 3]) -> Result<Self, String> {
+        if v.iter().any(|x| !(0.0..=1.0).contains(x)) {
+            return Err(format!("albedo {v:?} must be within 0..=1 in each channel"));
+        }
+        Ok(Self(v))
+    }
+}
+
+impl From<Albedo> for [f64; 3] {
+    fn from(c: Albedo) -> Self {
+        c.0
+    }
+}
+
+fn vec3_of(v: [f64; 3]) -> Vec3 {
+    Vec3::new(v[0] as f32, v[1] as f32, v[2] as f32)
+}
+
+macro_rules! bounded_integer {
+    ($name:ident, $what:literal, $lo:expr, $hi:expr) => {
+        #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+        #[serde(try_from = "i64", into = "i64")]
+        pub struct $name(pub u32);
+
+        impl TryFrom<i64> for $name {
+            type Error = String;
+            fn try_from(v: i64) -> Result<Self, String> {
+                if v < $lo as i64 || v > $hi as i64 {
+                    return Err(format!(concat!($what, " {} must be within {}..={}"), v, $lo, $hi));
+                }
+                Ok(Self(v as u32))
+            }
+        }
+
+        impl From<$name> for i64 {
+            fn from(v: $name) -> i64 {
+                v.0 as i64
+            }
+        }
+    };
+}
+
+bounded_integer!(Side, "resolution", 1, MAX_SIDE);
+bounded_integer!(Spp, "spp", 1, MAX_SPP);
+bounded_integer!(Bounces, "bounces", 0, MAX_BOUNCES);
+
+/// Vertical field of view, strictly between 0 and 180 degrees.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "f64", into = "f64")]
+pub struct Fov(pub f64);
+
+impl TryFrom<f64> for Fov {
+    type Error = String;
+    fn try_from(v: f64) -> Result<Self, String> {
+        if !(v > 0.0 && v < 180.0) {
+            return Err(format!("field of view {v} must be in (0, 180) degrees"));
+        }
+        Ok(Self(v))
+    }
+}
+
+impl From<Fov> for f64 {
+    fn from(v: Fov) -> f64 {
+        v.0
+    }
+}
+
+/// A positive, finite number of seconds.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "f64", into = "f64")]
+pub struct Seconds(pub f64);
+
+impl TryFrom<f64> for Seconds {
+    type Error = String;
+    fn try_from(v: f64) -> Result<Self, String> {
+        if !(v.is_finite() && v > 0.0) {
+            return Err(format!("time limit {v} must be a positive number of seconds"));
+        }
+        Ok(Self(v))
+    }
+}
+
+impl From<Seconds> for f64 {
+    fn from(v: Seconds) -> f64 {
+        v.0
+    }
+}
+
+/// `scale = 2` or `scale = [1, 2, 1]`: finite, non-zero factors (zero would flatten every face).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "toml::Value", into = "toml::Value")]
+pub enum Scale {
+    Uniform(f64),
+    PerAxis([f64; 3]),
+}
+
+fn number(v: &toml::Value) -> Option<f64> {
+    match v {
+        toml::Value::Float(f) => Some(*f),
+        toml::Value::Integer(i) => Some(*i as f64),
+        _ => None,
+    }
+}
+
+impl TryFrom<toml::Value> for Scale {
+    type Error = String;
+    fn try_from(v: toml::Value) -> Result<Self, String> {
+        let s = if let Some(x) = number(&v) {
+            Scale::Uniform(x)
+        } else if let Some(a) = v.as_array().filter(|a| a.len() == 3) {
+            let xs: Option<Vec<f64>> = a.iter().map(number).collect();
+            let xs = xs.ok_or("scale components must be numbers")?;
+            Scale::PerAxis([xs[0], xs[1], xs[2]])
+        } else {
+            return Err(format!("scale must be a number or [x, y, z], not {v}"));
+        };
+        if s.factors().iter().any(|x| !x.is_finite() || *x == 0.0 || x.abs() > MAX_COORDINATE as f64) {
+            return Err(format!("scale {v} must be finite and non-zero"));
+        }
+        Ok(s)
+    }
+}
+
+impl From<Scale> for toml::Value {
+    fn from(s: Scale) -> Self {
+        match s {
+            Scale::Uniform(x) => toml::Value::Float(x),
+            Scale::PerAxis(v) => toml::Value::Array(v.iter().map(|x| toml::Value::Float(*x)).collect()),
+        }
+    }
+}
+
+impl Scale {
+    pub fn factors(self) -> [f64; 3] {
+        match self {
+            Scale::Uniform(x) => [x; 3],
+            Scale::PerAxis(v) => v,
+        }
+    }
+}
+
+/// Material models. Only Lambertian diffuse exists yet; the names of the physically based models
+/// to come are reserved so that a file using them fails clearly instead of rendering diffuse.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "String", into = "String")]
+pub enum MaterialKind {
+    #[default]
+    Diffuse,
+}
+
+const RESERVED_MATERIALS: [&str; 5] = ["conductor", "dielectric", "plastic", "roughconductor", "principled"];
+
+impl TryFrom<String> for MaterialKind {
+    type Error = String;
+    fn try_from(s: String) -> Result<Self, String> {
+        match s.as_str() {
+            "diffuse" => Ok(MaterialKind::Diffuse),
+            r if RESERVED_MATERIALS.contains(&r) => Err(format!("material type {r:?} is not supported yet (reserved for the physically based materials to come)")),
+            other => Err(format!("unknown material type {other:?} (expected \"diffuse\")")),
+        }
+    }
+}
+
+impl From<MaterialKind> for String {
+    fn from(k: MaterialKind) -> String {
+        match k {
+            MaterialKind::Diffuse => "diffuse".into(),
+        }
+    }
+}
+
+// ---- Locations ----
+
+/// `file:line:column` (1-based, column in characters) of a byte offset in `text`.
+pub fn location(path: &Path, text: &str, span: Option<Range<usize>>) -> String {
+    let Some(span) = span else { return path.display().to_string() };
+    let start = floor_char_boundary(text, span.start.min(text.len()));
+    let before = &text[..start];
+    let line = before.matches('\n').count() + 1;
+    let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    format!("{}:{line}:{column}", path.display())
+}
+
+fn floor_char_boundary(text: &str, mut i: usize) -> usize {
+    while !text.is_char_boundary(i) {
+        i -= 1;
+    }
+    i
+}
+
+// ---- Reading ----
+
+/// Parses and checks a scene file's text (no other file is read).
+pub fn parse(path: &Path, text: &str) -> Result<SceneFile> {
+    toml::from_str(text).map_err(|e| anyhow!("{}: {}", location(path, text, e.span()), e.message().trim_end()))
+}
+
+/// A scene file turned into a scene.
+pub struct Resolved {
+    pub scene: Scene,
+    pub settings: SceneSettings,
+    pub warnings: Vec<String>,
+}
+
+/// Reads a scene file and every mesh it names.
+pub fn load(path: &Path, files: &dyn Files) -> Result<Resolved> {
+    let bytes = files.read(path).map_err(|e| anyhow!("{}: cannot read: {e}", path.display()))?;
+    let text = std::str::from_utf8(&bytes).map_err(|e| anyhow!("{}: not UTF-8 text (byte {})", path.display(), e.valid_up_to()))?;
+    let file = parse(path, text)?;
+    resolve(path, text, &file, files)
+}
+
+/// The render settings a scene file states (unset items stay unset).
+pub fn settings_of(file: &SceneFile) -> SceneSettings {
+    let (c, r) = (&file.camera, &file.render);
+    let f32x3 = |v: [f64; 3]| [v[0] as f32, v[1] as f32, v[2] as f32];
+    SceneSettings {
+        width: c.width.map(|s| s.0),
+        height: c.height.map(|s| s.0),
+        spp: r.spp.map(|s| s.0),
+        bounces: r.bounces.map(|b| b.0),
+        seed: r.seed,
+        time_limit_s: r.time_limit.map(|t| t.0),
+        eye: c.eye.map(|p| f32x3(p.0)),
+        target: c.target.map(|p| f32x3(p.0)),
+        up: c.up.map(|p| f32x3(p.0)),
+        fov_deg: c.fov.map(|f| f.0 as f32),
+        environment: file.environment.map(|e| f32x3(e.0)),
+    }
+}
+
+fn scene_material(m: &MaterialSection) -> Material {
+    match m.kind {
+        MaterialKind::Diffuse => diffuse(m.albedo.map_or(Vec3::splat(DEFAULT_ALBEDO), |a| vec3_of(a.0)), m.emission.map_or(Vec3::ZERO, |e| vec3_of(e.0))),
+    }
+}
+
+/// The mesh's placement.
+pub fn placement(m: &MeshSection) -> Placement {
+    Placement {
+        scale: m.scale.map_or(Vec3::ONE, |s| vec3_of(s.factors())),
+        rotate_deg: m.rotate.map_or(Vec3::ZERO, Point::vec3),
+        translate: m.translate.map_or(Vec3::ZERO, Point::vec3),
+    }
+}
+
+/// Loads the meshes of a parsed scene file (paths relative to `path`'s folder) and assembles
+/// the scene: scene materials first (in name order), then each mesh's MTL materials.
+pub fn resolve(path: &Path, text: &str, file: &SceneFile, files: &dyn Files) -> Result<Resolved> {
+    let at = |span: Range<usize>| location(path, text, Some(span));
+    if file.meshes.is_empty() {
+        bail!("{}: no [[mesh]] entries: a scene needs at least one mesh", path.display());
+    }
+    let dir = path.parent().unwrap_or(Path::new(""));
+    let mut materials = Vec::new();
+    let mut names = Vec::new();
+    let mut index_of = BTreeMap::new();
+    for (name, m) in &file.materials {
+        index_of.insert(name.as_str(), materials.len() as u32);
+        materials.push(scene_material(m));
+        names.push(name.clone());
+    }
+    let lookup = |name: &Spanned<String>| -> Result<u32> {
+        index_of.get(name.get_ref().as_str()).copied().ok_or_else(|| {
+            let known: Vec<&str> = index_of.keys().copied().collect();
+            anyhow!("{}: no material named {:?} in [materials] (defined: {})", at(name.span()), name.get_ref(), if known.is_empty() { "none".into() } else { known.join(", ") })
+        })
+    };
+    let mut triangles = Vec::new();
+    let mut material_of = Vec::new();
+    let mut warnings = Vec::new();
+    for m in &file.meshes {
+        let mesh_path = dir.join(m.file.get_ref());
+        let mesh = obj::load_mesh(&mesh_path, files).with_context(|| format!("{}: mesh {:?}", at(m.file.span()), m.file.get_ref()))?;
+        let whole = m.material.as_ref().map(&lookup).transpose()?;
+        let mut by_name = BTreeMap::new();
+        for (mtl_name, target) in &m.materials {
+            if !mesh.material_names.iter().any(|n| n == mtl_name) {
+                bail!(
+                    "{}: mesh {:?} has no MTL material named {mtl_name:?} (it has: {})",
+                    at(target.span()),
+                    m.file.get_ref(),
+                    mesh.material_names.join(", ")
+                );
+            }
+            by_name.insert(mtl_name.as_str(), lookup(target)?);
+        }
+        // The global index of each of this mesh's local materials.
+        let mut global = Vec::with_capacity(mesh.materials.len());
+        for (local, name) in mesh.material_names.iter().enumerate() {
+            let g = match by_name.get(name.as_str()).copied().or(whole) {
+                Some(g) => g,
+                None => {
+                    materials.push(mesh.materials[local]);
+                    names.push(name.clone());
+                    materials.len() as u32 - 1
+                }
+            };
+            global.push(g);
+        }
+        let mut placed = mesh.triangles;
+        placement(m).apply(&mut placed);
+        for t in &placed {
+            for v in [t.v0, t.v1, t.v2] {
+                if !v.is_finite() || v.abs().max_element() > MAX_COORDINATE {
+                    bail!("{}: mesh {:?}: placed vertex {} is not finite or beyond ±{MAX_COORDINATE:e}", at(m.file.span()), m.file.get_ref(), v.truncate());
+                }
+            }
+        }
+        triangles.extend(placed);
+        material_of.extend(mesh.material_of.iter().map(|&l| global[l as usize]));
+        warnings.extend(mesh.warnings);
+    }
+    let scene = Scene::new(triangles, material_of, materials, names).with_context(|| path.display().to_string())?;
+    Ok(Resolved { scene, settings: settings_of(file), warnings })
+}
+
+// ---- Writing ----
+
+/// `to` expressed relative to the folder `from` (both absolute).
+fn relative_path(to: &Path, from: &Path) -> PathBuf {
+    let (t, f): (Vec<Component>, Vec<Component>) = (to.components().collect(), from.components().collect());
+    let common = t.iter().zip(&f).take_while(|(a, b)| a == b).count();
+    // Sharing only the root (or a drive) is no relation worth a chain of `..`.
+    if common <= 1 {
+        return to.to_path_buf();
+    }
+    let mut out = PathBuf::new();
+    for _ in common..f.len() {
+        out.push("..");
+    }
+    for c in &t[common..] {
+        out.push(c.as_os_str());
+    }
+    out
+}
+
+/// Rewrites each mesh path (relative to `scene_path`'s folder) to be relative to `out_path`'s.
+pub fn rebase_meshes(file: &mut SceneFile, scene_path: &Path, out_path: &Path) -> Result<()> {
+    let out_dir = absolute_dir(out_path)?;
+    let scene_dir = absolute_dir(scene_path)?;
+    for m in &mut file.meshes {
+        let abs = scene_dir.join(m.file.get_ref());
+        let abs = abs.canonicalize().unwrap_or(abs);
+        let rel = relative_path(&abs, &out_dir);
+        let rel = rel.to_str().ok_or_else(|| anyhow!("{}: path is not UTF-8", rel.display()))?.to_string();
+        m.file = Spanned::new(0..0, rel);
+    }
+    Ok(())
+}
+
+fn absolute_dir(file: &Path) -> Result<PathBuf> {
+    let dir = match file.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    dir.canonicalize().map_err(|e| anyhow!("{}: {e}", dir.display()))
+}
+
+/// The shortest decimal that reads back as exactly `x` (0.278 rather than 0.27799999713897705),
+/// as the f64 a TOML file holds: written out, read and rounded to f32 it gives `x` again.
+pub fn tidy(x: f32) -> f64 {
+    let short: f64 = format!("{x}").parse().unwrap_or(x as f64);
+    if short as f32 == x {
+        short
+    } else {
+        x as f64
+    }
+}
+
+/// A scene file stating `settings` in full and placing the meshes as given.
+pub fn with_settings(mut file: SceneFile, s: &SceneSettings) -> Result<SceneFile> {
+    let point = |v: Option<[f32; 3]>| v.map(|v| Point([tidy(v[0]), tidy(v[1]), tidy(v[2])]));
+    let side = |v: Option<u32>| v.map(|v| Side::try_from(v as i64)).transpose();
+    file.camera = CameraSection {
+        eye: point(s.eye),
+        target: point(s.target),
+        up: point(s.up),
+        fov: s.fov_deg.map(|f| Fov::try_from(tidy(f))).transpose().map_err(|e| anyhow!(e))?,
+        width: side(s.width).map_err(|e| anyhow!(e))?,
+        height: side(s.height).map_err(|e| anyhow!(e))?,
+    };
+    file.render = RenderSection {
+        spp: s.spp.map(|v| Spp::try_from(v as i64)).transpose().map_err(|e| anyhow!(e))?,
+        bounces: s.bounces.map(|v| Bounces::try_from(v as i64)).transpose().map_err(|e| anyhow!(e))?,
+        seed: s.seed,
+        time_limit: s.time_limit_s.map(Seconds::try_from).transpose().map_err(|e| anyhow!(e))?,
+    };
+    file.environment = s.environment.map(|v| Color::try_from([tidy(v[0]), tidy(v[1]), tidy(v[2])])).transpose().map_err(|e| anyhow!(e))?;
+    Ok(file)
+}
+
+/// A scene file naming one OBJ by its file name (what `export` writes for an OBJ scene, before
+/// [`rebase_meshes`] makes the path relative to the output).
+pub fn for_obj(obj: &Path) -> SceneFile {
+    let name = obj.file_name().map_or_else(|| obj.to_string_lossy().into_owned(), |n| n.to_string_lossy().into_owned());
+    SceneFile {
+        meshes: vec![MeshSection {
+            file: Spanned::new(0..0, name),
+            scale: None,
+            rotate: None,
+            translate: None,
+            material: None,
+            materials: BTreeMap::new(),
+        }],
+        ..Default::default()
+    }
+}
+
+/// The TOML text of a scene file.
+pub fn to_toml(file: &SceneFile, comment: &str) -> Result<String> {
+    let body = toml::to_string(file).map_err(|e| anyhow!("writing the scene as TOML: {e}"))?;
+    let mut text = String::new();
+    for line in comment.lines() {
+        text.push_str("# ");
+        text.push_str(line);
+        text.push('\n');
+    }
+    text.push('\n');
+    text.push_str(&body);
+    Ok(text)
+}

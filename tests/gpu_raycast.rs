@@ -10,8 +10,7 @@ use shared::glam::Vec3;
 use shared::layout::{RayQuery, RAY_ANY_HIT, RAY_SHORT_STACK};
 use shared::numerics::offset_ray_origin;
 use shared::raycast::cast_ray;
-use shared::triangle::geometric_normal;
-use shared::vecmath::xyz;
+use shared::triangle::{geometric_normal, interpolate};
 use std::path::PathBuf;
 
 fn shared_scene(rel: &str) -> PathBuf {
@@ -31,10 +30,9 @@ fn surface_rays(c: &Compiled, n: usize, seed: u64) -> Vec<RayQuery> {
     let mut rng = Pcg64::seed_from_u64(seed);
     let tris = &c.scene.triangles;
     let point = |rng: &mut Pcg64, i: usize| {
-        let t = &tris[i];
         let (a, b): (f32, f32) = (rng.random(), rng.random());
         let (a, b) = if a + b > 1.0 { (1.0 - a, 1.0 - b) } else { (a, b) };
-        xyz(t.v0) * (1.0 - a - b) + xyz(t.v1) * a + xyz(t.v2) * b
+        interpolate(&tris[i], 1.0 - a - b, a, b)
     };
     (0..n)
         .map(|k| {
@@ -42,7 +40,7 @@ fn surface_rays(c: &Compiled, n: usize, seed: u64) -> Vec<RayQuery> {
             let p = point(&mut rng, i);
             let n = geometric_normal(&tris[i]).normalize();
             let side = if rng.random::<bool>() { n } else { -n };
-            let o = offset_ray_origin(p, side);
+            let o = offset_ray_origin(p.p, p.error, side);
             // Every other pair of rays takes the short-stack traversal.
             let stack = if k % 4 < 2 { 0 } else { RAY_SHORT_STACK };
             if k % 2 == 0 {
@@ -56,7 +54,7 @@ fn surface_rays(c: &Compiled, n: usize, seed: u64) -> Vec<RayQuery> {
                 query(o, d, f32::MAX, stack)
             } else {
                 let j = rng.random_range(0..tris.len());
-                let q = point(&mut rng, j);
+                let q = point(&mut rng, j).p;
                 query(o, q - o, 1.0 - 1e-4, RAY_ANY_HIT | stack)
             }
         })

@@ -73,3 +73,41 @@ pub fn emitter(emission: Vec3, facing_camera: bool) -> Result<Scene> {
     Scene::new(tris, vec![0; 2], vec![diffuse(Vec3::splat(0.5), emission)], vec!["emitter".into()])
 }
 
+
+/// A closed, watertight sphere of radius 1 at the origin: an icosahedron whose faces are split
+/// into four `subdivisions` times, new vertices pushed onto the sphere (20·4^s triangles). Every
+/// edge is shared by exactly two triangles through the very same vertex values, fronts outward.
+pub fn icosphere(subdivisions: u32) -> Vec<Triangle> {
+    let t = (1.0 + 5.0f64.sqrt()) / 2.0;
+    let mut verts: Vec<[f64; 3]> = [[-1.0, t, 0.0], [1.0, t, 0.0], [-1.0, -t, 0.0], [1.0, -t, 0.0], [0.0, -1.0, t], [0.0, 1.0, t], [0.0, -1.0, -t], [0.0, 1.0, -t], [t, 0.0, -1.0], [t, 0.0, 1.0], [-t, 0.0, -1.0], [-t, 0.0, 1.0]]
+        .iter()
+        .map(|v| {
+            let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+            [v[0] / l, v[1] / l, v[2] / l]
+        })
+        .collect();
+    let mut faces: Vec<[usize; 3]> = vec![
+        [0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4], [11, 10, 2], [10, 7, 6], [7, 1, 8],
+        [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1],
+    ];
+    for _ in 0..subdivisions {
+        let mut midpoint = std::collections::HashMap::new();
+        let mut mid = |a: usize, b: usize, verts: &mut Vec<[f64; 3]>| -> usize {
+            *midpoint.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                let (p, q) = (verts[a], verts[b]);
+                let m = [p[0] + q[0], p[1] + q[1], p[2] + q[2]];
+                let l = (m[0] * m[0] + m[1] * m[1] + m[2] * m[2]).sqrt();
+                verts.push([m[0] / l, m[1] / l, m[2] / l]);
+                verts.len() - 1
+            })
+        };
+        let mut next = Vec::with_capacity(faces.len() * 4);
+        for [a, b, c] in faces {
+            let (ab, bc, ca) = (mid(a, b, &mut verts), mid(b, c, &mut verts), mid(c, a, &mut verts));
+            next.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
+        }
+        faces = next;
+    }
+    let v = |i: usize| Vec3::new(verts[i][0] as f32, verts[i][1] as f32, verts[i][2] as f32);
+    faces.iter().map(|f| tri(v(f[0]), v(f[1]), v(f[2]))).collect()
+}

@@ -22,7 +22,7 @@ use shared::material::sample as sample_bsdf;
 use shared::numerics::offset_ray_origin;
 use shared::raycast::cast_ray;
 use shared::rng::Sampler;
-use shared::triangle::geometric_normal;
+use shared::triangle::{geometric_normal, hit_point, RayShear};
 use shared::vecmath::{dot, normalize};
 use std::time::Instant;
 
@@ -63,12 +63,14 @@ pub fn make_rays(c: &Compiled, s: &RenderSettings, kind: RayKind, traversal: Tra
             }
             let tri = &scene.triangles[hit.triangle as usize];
             let d = Vec3::new(q.dir.x, q.dir.y, q.dir.z);
-            let pos = eye + d * hit.t;
+            // The hit again, for its barycentrics: the point and its error bound come from them.
+            let h = RayShear::new(eye, d).intersect(tri, 0.0, f32::MAX)?;
+            let surface = hit_point(tri, &h);
             let n = normalize(geometric_normal(tri));
             let n = if dot(n, d) < 0.0 { n } else { -n };
             let mut rng = Sampler::new(i as u32, 0, 0x5eed);
             let wi = sample_bsdf(&c.scene.materials[c.scene.info[hit.triangle as usize].material as usize], n, rng.next_1d(), rng.next_1d()).wi;
-            let o = offset_ray_origin(pos, n);
+            let o = offset_ray_origin(surface.p, surface.error, n);
             Some(match kind {
                 RayKind::Ao => query(o, wi, AO_LENGTH * diagonal, flags | RAY_ANY_HIT),
                 _ => query(o, wi, f32::MAX, flags),

@@ -14,7 +14,7 @@ use crate::numerics::{offset_ray_origin, sanitize_radiance};
 use crate::rng::Sampler;
 use crate::sampling::{power_heuristic, select_light, uniform_triangle};
 use crate::scene::SceneView;
-use crate::triangle::{geometric_normal, hit_point, TriangleHit};
+use crate::triangle::{geometric_normal, hit_point, interpolate, TriangleHit};
 use crate::vecmath::{dot, length_squared, max_component, normalize, xyz};
 #[allow(unused_imports)]
 use spirv_std::num_traits::Float;
@@ -94,7 +94,8 @@ fn shade_vertex(scene: &SceneView, p: &RenderParams, path: &mut Path, rng: &mut 
     let mat = &scene.materials[info.material as usize];
     let ng = geometric_normal(tri);
     let n = normalize(ng);
-    let pos = hit_point(tri, &TriangleHit { t: hit.t, u: hit.u, v: hit.v, w: hit.w });
+    let surface = hit_point(tri, &TriangleHit { t: hit.t, u: hit.u, v: hit.v, w: hit.w });
+    let pos = surface.p;
 
     let le = emitted(mat, ng, dir);
     if (le.x > 0.0) | (le.y > 0.0) | (le.z > 0.0) {
@@ -114,7 +115,7 @@ fn shade_vertex(scene: &SceneView, p: &RenderParams, path: &mut Path, rng: &mut 
 
     // Shade on the side the ray arrived from: diffuse is two-sided.
     let ns = if dot(ng, dir) < 0.0 { n } else { -n };
-    let spawn = offset_ray_origin(pos, ns);
+    let spawn = offset_ray_origin(pos, surface.error, ns);
 
     if scene.light_count > 0 {
         let u_select = rng.next_1d();
@@ -123,7 +124,8 @@ fn shade_vertex(scene: &SceneView, p: &RenderParams, path: &mut Path, rng: &mut 
         let light = scene.lights[select_light(scene.lights, scene.light_count, u_select) as usize];
         let ltri = &scene.triangles[light.triangle as usize];
         let (b0, b1, b2) = uniform_triangle(u1, u2);
-        let q = xyz(ltri.v0) * b0 + xyz(ltri.v1) * b1 + xyz(ltri.v2) * b2;
+        let on_light = interpolate(ltri, b0, b1, b2);
+        let q = on_light.p;
         let nl = normalize(geometric_normal(ltri));
         let to_light = q - pos;
         let dist2 = length_squared(to_light);
@@ -132,7 +134,7 @@ fn shade_vertex(scene: &SceneView, p: &RenderParams, path: &mut Path, rng: &mut 
         let (f, pdf_bsdf) = eval(mat, ns, wi);
         if (cos_l > 0.0) & (pdf_bsdf > 0.0) & (dist2 > 0.0) {
             let light_pdf = light.pmf * dist2 / (cos_l * light.area);
-            let target = offset_ray_origin(q, nl);
+            let target = offset_ray_origin(q, on_light.error, nl);
             if !any(scene, p.traversal, spawn, target - spawn, 1.0 - SHADOW_EPSILON).hit.is_hit() {
                 let lmat = &scene.materials[scene.info[light.triangle as usize].material as usize];
                 let weight = power_heuristic(light_pdf, pdf_bsdf);

@@ -1,6 +1,5 @@
-//! Conservative floating-point tools, in one place (pbrt-v4 `ray.h`/`float.h`, Psychopath's
-//! `fp_utils.rs`, Wächter & Binder, "A Fast and Robust Method for Avoiding Self-Intersection",
-//! Ray Tracing Gems ch. 6).
+//! Conservative floating-point tools, in one place (pbrt-v4 `ray.h`/`float.h` and its error-bound
+//! ray offset, Psychopath's `fp_utils.rs`).
 //!
 //! Every test here works on bit patterns: Vulkan drivers may optimise `x != x` away and need not
 //! produce NaNs, so self-comparison is not a reliable finiteness test on the GPU.
@@ -55,32 +54,28 @@ pub fn next_float_down(x: f32) -> f32 {
     f32::from_bits(bits)
 }
 
-/// Moves `p` off the surface with normal `n` (pointing to the side the new ray leaves from) by a
-/// few hundred ulps of `p` (Wächter & Binder 2019). Far from the origin the step is in integer ulps,
-/// so it scales with the position's own rounding error; near the origin, where ulps become tiny, a
-/// fixed float step takes over. Only integer and bit operations: identical on CPU and GPU.
+/// Moves a surface point off its surface so that a ray spawned from it cannot hit that surface
+/// again (pbrt-v4 `OffsetRayOrigin`, §6.8.6): `p` lies within `error` of the true surface point
+/// on each axis; the origin moves along the unit normal `n` (pointing to the side the new ray
+/// leaves from) by the error box's extent along `n`, then one more ulp away on each axis to
+/// absorb the rounding of that addition. Multiplies, adds and bit steps only: identical on the
+/// CPU and the GPU.
 #[inline]
-pub fn offset_ray_origin(p: Vec3, n: Vec3) -> Vec3 {
-    const ORIGIN: f32 = 1.0 / 32.0;
-    const FLOAT_SCALE: f32 = 1.0 / 65536.0;
-    const INT_SCALE: f32 = 256.0;
-    Vec3::new(
-        offset_component(p.x, n.x, ORIGIN, FLOAT_SCALE, INT_SCALE),
-        offset_component(p.y, n.y, ORIGIN, FLOAT_SCALE, INT_SCALE),
-        offset_component(p.z, n.z, ORIGIN, FLOAT_SCALE, INT_SCALE),
-    )
+pub fn offset_ray_origin(p: Vec3, error: Vec3, n: Vec3) -> Vec3 {
+    let d = n.x.abs() * error.x + n.y.abs() * error.y + n.z.abs() * error.z;
+    let offset = n * d;
+    Vec3::new(step_away(p.x + offset.x, n.x), step_away(p.y + offset.y, n.y), step_away(p.z + offset.z, n.z))
 }
 
 #[inline]
-fn offset_component(p: f32, n: f32, origin: f32, float_scale: f32, int_scale: f32) -> f32 {
-    if p.abs() < origin {
-        return p + float_scale * n;
+fn step_away(x: f32, direction: f32) -> f32 {
+    if direction > 0.0 {
+        next_float_up(x)
+    } else if direction < 0.0 {
+        next_float_down(x)
+    } else {
+        x
     }
-    let step = (int_scale * n) as i32;
-    // Moving away from zero grows the magnitude, so the sign of p decides the direction of the
-    // integer step.
-    let signed = if p < 0.0 { -step } else { step };
-    f32::from_bits((p.to_bits() as i32).wrapping_add(signed) as u32)
 }
 
 /// Zeroes a non-finite or negative radiance sample. Returns the sample and whether it was bad.
@@ -115,13 +110,21 @@ mod tests {
     }
 
     #[test]
-    fn offset_moves_to_the_normal_side() {
-        for &p in &[0.0f32, 0.01, -0.01, 1.0, -1.0, 1e4, -1e4, 1e6] {
+    fn offset_moves_to_the_normal_side_by_the_error_bound() {
+        for &p in &[1e-6f32, -0.01, 1.0, -1.0, 1e4, -1e4, 1e6] {
             for &n in &[1.0f32, -1.0] {
-                let q = offset_ray_origin(Vec3::splat(p), Vec3::splat(n));
+                let error = Vec3::splat(p.abs() * gamma(7));
+                let q = offset_ray_origin(Vec3::splat(p), error, Vec3::new(n, 0.0, 0.0));
                 assert!((q.x - p) * n > 0.0, "p={p} n={n} q={}", q.x);
+                assert!((q.x - p).abs() >= error.x, "p={p}: moved {} < error {}", (q.x - p).abs(), error.x);
+                assert_eq!((q.y, q.z), (p, p), "no offset across the normal");
             }
         }
+        // An exact point still moves by an ulp along the normal.
+        assert!(offset_ray_origin(Vec3::ZERO, Vec3::ZERO, Vec3::Z).z > 0.0);
+        // Tiny scenes get tiny offsets: nothing like a fixed epsilon.
+        let q = offset_ray_origin(Vec3::splat(1e-6), Vec3::splat(1e-6 * gamma(7)), Vec3::X);
+        assert!(q.x - 1e-6 < 1e-11);
     }
 
     #[test]

@@ -8,6 +8,7 @@
 //! No f64 fallback: not every GPU has `Float64`, and the zero case is already closed.
 use crate::glam::Vec3;
 use crate::layout::Triangle;
+use crate::numerics::gamma;
 use crate::vecmath::{axis, xyz};
 
 /// Per-ray constants of the watertight test.
@@ -99,11 +100,34 @@ pub fn geometric_normal(tri: &Triangle) -> Vec3 {
     crate::vecmath::cross(xyz(tri.v1) - xyz(tri.v0), xyz(tri.v2) - xyz(tri.v0))
 }
 
-/// The hit point from barycentric weights: far more accurate than `origin + t·dir`.
+/// A point on a triangle and the bound of its rounding error, per axis (pbrt-v4 §6.8.5).
+#[derive(Clone, Copy, Debug)]
+pub struct SurfacePoint {
+    pub p: Vec3,
+    pub error: Vec3,
+}
+
+/// The point with barycentric weights (b0, b1, b2) (summing to one): b0·v0 + b1·v1 + b2·v2, with
+/// pbrt-v4's bound γ(7)·(|b0·v0| + |b1·v1| + |b2·v2|) (§6.8.5) taken at its largest axis for all
+/// three: the watertight test measures distances in a sheared frame that mixes the axes, so a
+/// triangle lying in a coordinate plane (a floor at y = 0, whose points are exact in y) still
+/// needs its spawned rays lifted off it. Interpolating keeps the point on the triangle far more
+/// accurately than `origin + t·dir`, and the bound scales with the coordinates: tiny scenes get
+/// tiny offsets, scenes far from the origin large ones.
 #[inline]
-pub fn hit_point(tri: &Triangle, hit: &TriangleHit) -> Vec3 {
+pub fn interpolate(tri: &Triangle, b0: f32, b1: f32, b2: f32) -> SurfacePoint {
+    let (a, b, c) = (xyz(tri.v0) * b0, xyz(tri.v1) * b1, xyz(tri.v2) * b2);
+    let sum = a.abs() + b.abs() + c.abs();
+    let largest = if sum.x > sum.y { sum.x } else { sum.y };
+    let largest = if sum.z > largest { sum.z } else { largest };
+    SurfacePoint { p: a + b + c, error: Vec3::splat(largest * gamma(7)) }
+}
+
+/// The hit point of a watertight-test hit, from its barycentric weights.
+#[inline]
+pub fn hit_point(tri: &Triangle, hit: &TriangleHit) -> SurfacePoint {
     let inv = 1.0 / (hit.u + hit.v + hit.w);
-    xyz(tri.v0) * (hit.u * inv) + xyz(tri.v1) * (hit.v * inv) + xyz(tri.v2) * (hit.w * inv)
+    interpolate(tri, hit.u * inv, hit.v * inv, hit.w * inv)
 }
 
 #[cfg(test)]
@@ -122,7 +146,7 @@ mod tests {
             let r = RayShear::new(Vec3::new(0.1, 0.0, oz), Vec3::new(0.0, 0.0, dz));
             let h = r.intersect(&t, 0.0, f32::INFINITY).expect("hit");
             assert!((h.t * dz.abs() - oz.abs()).abs() < 1e-6);
-            let p = hit_point(&t, &h);
+            let p = hit_point(&t, &h).p;
             assert!((p - Vec3::new(0.1, 0.0, 0.0)).abs().max_element() < 1e-6);
         }
         let r = RayShear::new(Vec3::new(2.0, 0.0, 1.0), Vec3::new(0.0, 0.0, -1.0));

@@ -52,6 +52,37 @@ fn build_checked(what: &str, tris: &[Triangle]) -> KdTree {
     sah.unwrap()
 }
 
+/// Random rays (aimed at random triangles, and from random points in random directions) must get
+/// exactly the brute-force hit, through both traversals.
+fn traversal_matches_brute_force(what: &str, tris: &[Triangle], rays: usize) {
+    let n = tris.len();
+    let scene = kdtrace::scene::Scene::new(tris.to_vec(), vec![0; n], vec![kdtrace::scene::diffuse(Vec3::splat(0.5), Vec3::ZERO)], vec!["m".into()]).unwrap();
+    let c = compile(scene, BuildSettings::default());
+    let params = c.bounds_params();
+    let view = c.view(&params);
+    // Flat scenes get origins off their plane: every axis spans at least the largest extent.
+    let (lo, hi) = (c.tree.bounds_min, c.tree.bounds_max);
+    let ext = (hi - lo).max(Vec3::splat((hi - lo).max_element()));
+    let lo = (lo + hi) * 0.5 - ext * 0.5;
+    let hits: usize = (0..rays)
+        .into_par_iter()
+        .map(|i| {
+            let mut rng = Pcg64::seed_from_u64(i as u64);
+            let o = lo + ext * Vec3::new(rng.random_range(-0.5..1.5), rng.random_range(-0.5..1.5), rng.random_range(-0.5..1.5));
+            let t = &c.scene.triangles[rng.random_range(0..c.scene.triangles.len())];
+            let d = if i % 2 == 0 { (xyz(t.v0) + xyz(t.v1) + xyz(t.v2)) / 3.0 - o } else { Vec3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)) };
+            let b = intersect_brute_force(&view, o, d, f32::MAX);
+            for traversal in [shared::layout::TRAVERSAL_FULL_STACK, shared::layout::TRAVERSAL_SHORT_STACK] {
+                let a = shared::raycast::closest(&view, traversal, o, d, f32::MAX).hit;
+                assert_eq!(a.t.to_bits(), b.t.to_bits(), "{what}: o={o:?} d={d:?}: tree {} (tri {}), brute force {} (tri {})", a.t, a.triangle, b.t, b.triangle);
+            }
+            b.is_hit() as usize
+        })
+        .sum();
+    eprintln!("{what}: {rays} rays, {hits} hits, both traversals equal to brute force");
+    assert!(hits > rays / 4, "{what}: too few hits ({hits})");
+}
+
 fn grid_of_triangles(n: usize, z: impl Fn(usize, usize) -> f32) -> Vec<Triangle> {
     let mut out = Vec::new();
     for i in 0..n {
@@ -67,6 +98,7 @@ fn grid_of_triangles(n: usize, z: impl Fn(usize, usize) -> f32) -> Vec<Triangle>
 fn all_triangles_in_one_axis_aligned_plane() {
     let tris = grid_of_triangles(60, |_, _| 0.5);
     build_checked("flat on z = 0.5", &tris);
+    traversal_matches_brute_force("flat on z = 0.5", &tris, 20_000);
 }
 
 #[test]
@@ -105,6 +137,7 @@ fn a_hundred_thousand_copies_of_one_triangle() {
     let tris = vec![t; 100_000];
     let tree = build_checked("10^5 copies", &tris);
     assert!(tree.nodes.len() <= 64, "copies cannot be separated; {} nodes", tree.nodes.len());
+    traversal_matches_brute_force("10^5 copies", &tris, 2_000);
 }
 
 #[test]
@@ -120,6 +153,7 @@ fn many_triangles_sharing_one_vertex_and_needles() {
     let refs = stats(&tree, tris.len(), &BuildSettings::default()).total_refs;
     let cap = BuildSettings::default().max_refs_factor as f64 * tris.len() as f64;
     assert!(refs as f64 <= cap, "{refs} references exceed the budget of {cap}");
+    traversal_matches_brute_force("fan and needles", &tris, 20_000);
 }
 
 fn shared_scene(rel: &str) -> PathBuf {

@@ -5,6 +5,7 @@ pub mod cpu;
 pub mod gpu;
 pub mod image_io;
 pub mod kdbuild;
+pub mod metrics;
 pub mod obj;
 pub mod procedural;
 pub mod render;

@@ -10,6 +10,8 @@ if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
 
 need_apt=()
 command -v spirv-opt >/dev/null 2>&1 || need_apt+=(spirv-tools)
+# The nv-flip crate compiles NVIDIA's ꟻLIP C++ (kdtrace compare).
+command -v c++ >/dev/null 2>&1 || need_apt+=(g++)
 # lavapipe: only needed where no Vulkan driver is installed, harmless beside a real one.
 ls /usr/share/vulkan/icd.d/lvp_icd*.json >/dev/null 2>&1 || need_apt+=(mesa-vulkan-drivers)
 ldconfig -p 2>/dev/null | grep -q 'libvulkan.so.1' || need_apt+=(libvulkan1)

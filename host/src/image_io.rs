@@ -73,3 +73,89 @@ pub fn read_exr(path: &Path) -> Result<(u32, u32, Vec<[f32; 3]>)> {
     let size = image.layer_data.size;
     Ok((size.width() as u32, size.height() as u32, image.layer_data.channel_data.pixels.1))
 }
+
+/// Reads a linear RGB image for comparison, by extension: OpenEXR (`.exr`) or Portable Float Map
+/// (`.pfm`).
+pub fn read_linear_image(path: &Path) -> Result<(u32, u32, Vec<[f32; 3]>)> {
+    match path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref() {
+        Some("exr") => read_exr(path),
+        Some("pfm") => read_pfm(path),
+        _ => bail!("{}: unknown linear image format (use .exr or .pfm)", path.display()),
+    }
+}
+
+/// Reads a Portable Float Map (Paul Debevec's format as used by HDRShop and pbrt): header `PF`
+/// (RGB) or `Pf` (grey, replicated to RGB), `width height`, and a scale whose sign gives the byte
+/// order (negative: little-endian); then rows of f32 from the bottom row up.
+pub fn read_pfm(path: &Path) -> Result<(u32, u32, Vec<[f32; 3]>)> {
+    let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    let bad = |why: &str| anyhow!("{}: not a PFM file: {why}", path.display());
+    // The header is three whitespace-separated tokens after the magic, then one whitespace byte.
+    let mut pos = 0usize;
+    let mut tokens = Vec::new();
+    while tokens.len() < 4 {
+        while pos < bytes.len() && bytes[pos].is_ascii_whitespace() {
+            pos += 1;
+        }
+        let start = pos;
+        while pos < bytes.len() && !bytes[pos].is_ascii_whitespace() {
+            pos += 1;
+        }
+        if start == pos || pos - start > 32 {
+            return Err(bad("truncated or malformed header"));
+        }
+        tokens.push(std::str::from_utf8(&bytes[start..pos]).map_err(|_| bad("header is not text"))?);
+    }
+    pos += 1; // the single whitespace byte that ends the header
+    let channels = match tokens[0] {
+        "PF" => 3,
+        "Pf" => 1,
+        _ => return Err(bad("magic is neither PF nor Pf")),
+    };
+    let width: u32 = tokens[1].parse().map_err(|_| bad("width is not a number"))?;
+    let height: u32 = tokens[2].parse().map_err(|_| bad("height is not a number"))?;
+    let scale: f32 = tokens[3].parse().map_err(|_| bad("scale is not a number"))?;
+    if width == 0 || height == 0 || width > crate::render::MAX_SIDE || height > crate::render::MAX_SIDE {
+        return Err(bad(&format!("size {width}x{height} out of range")));
+    }
+    if !(scale.is_finite() && scale != 0.0) {
+        return Err(bad("scale must be finite and non-zero"));
+    }
+    let n = width as usize * height as usize;
+    let need = n * channels * 4;
+    let data = bytes.get(pos..).filter(|d| d.len() >= need).ok_or_else(|| bad(&format!("{} bytes of pixel data, expected {need}", bytes.len().saturating_sub(pos))))?;
+    let value = |i: usize| {
+        let b = [data[4 * i], data[4 * i + 1], data[4 * i + 2], data[4 * i + 3]];
+        if scale < 0.0 {
+            f32::from_le_bytes(b)
+        } else {
+            f32::from_be_bytes(b)
+        }
+    };
+    let mut pixels = vec![[0f32; 3]; n];
+    for y in 0..height as usize {
+        // File rows run bottom to top; ours top to bottom.
+        let row = height as usize - 1 - y;
+        for x in 0..width as usize {
+            let i = (y * width as usize + x) * channels;
+            pixels[row * width as usize + x] = if channels == 3 { [value(i), value(i + 1), value(i + 2)] } else { [value(i); 3] };
+        }
+    }
+    Ok((width, height, pixels))
+}
+
+/// Writes a little-endian RGB Portable Float Map (the inverse of `read_pfm`).
+pub fn write_pfm(path: &Path, width: u32, height: u32, rgb: &[[f32; 3]]) -> Result<()> {
+    if rgb.len() != (width * height) as usize {
+        bail!("{}: {} pixels for a {width}x{height} image", path.display(), rgb.len());
+    }
+    let mut out = format!("PF\n{width} {height}\n-1.0\n").into_bytes();
+    for y in (0..height as usize).rev() {
+        for p in &rgb[y * width as usize..(y + 1) * width as usize] {
+            for c in p {
+                out.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+    }
+    std::fs::write(path, out).with_context(|| format!("{}: cannot write PFM", path.display()))
+}

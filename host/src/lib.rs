@@ -8,6 +8,7 @@ pub mod gpu;
 pub mod image_io;
 pub mod kdbuild;
 pub mod kdc;
+pub mod metrics;
 pub mod obj;
 pub mod procedural;
 pub mod raybench;

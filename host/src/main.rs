@@ -1,4 +1,4 @@
-//! The `kdtrace` command line: `render`, `verify`, `export`, `compile`, `adapters`.
+//! The `kdtrace` command line: `render`, `verify`, `tree`, `rays`, `export`, `compile`, `compare`, `adapters`.
 use anyhow::Result;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -39,6 +39,8 @@ enum Command {
     Tree(TreeArgs),
     /// Ray-casting throughput for primary, ambient-occlusion and diffuse rays (Aila & Laine).
     Rays(RaysArgs),
+    /// Compare a linear image (EXR or PFM) against a reference: RMSE, relMSE, MAE, ꟻLIP, NaN/Inf.
+    Compare(CompareArgs),
 }
 
 #[derive(Args)]
@@ -51,6 +53,17 @@ struct RaysArgs {
     repeats: usize,
     #[command(flatten)]
     image: ImageArgs,
+}
+
+#[derive(Args)]
+struct CompareArgs {
+    /// Reference image (.exr or .pfm).
+    reference: PathBuf,
+    /// Test image (.exr or .pfm), same size.
+    test: PathBuf,
+    /// Print one JSON line instead of text.
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(Args)]
@@ -477,6 +490,31 @@ fn compile(a: CompileArgs) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+fn compare(a: CompareArgs) -> Result<ExitCode> {
+    use kdtrace::metrics::{errors, LinearImage};
+    let read = |p: &PathBuf| -> Result<LinearImage> {
+        let (w, h, px) = image_io::read_linear_image(p)?;
+        LinearImage::new(w, h, px)
+    };
+    let (r, t) = (read(&a.reference)?, read(&a.test)?);
+    if (r.width, r.height) != (t.width, t.height) {
+        anyhow::bail!("{} is {}x{} but {} is {}x{}: images of different sizes", a.reference.display(), r.width, r.height, a.test.display(), t.width, t.height);
+    }
+    let e = errors(&r, &t)?;
+    if a.json {
+        let mut line = serde_json::to_value(&e)?;
+        line.as_object_mut().unwrap().extend([("reference".to_string(), json!(a.reference)), ("test".to_string(), json!(a.test))]);
+        println!("{line}");
+    } else {
+        println!(
+            "{} vs reference {} ({}x{}): RMSE {:.6e}, relMSE {:.6e}, MAE {:.6e}, FLIP {:.6} ({} ppd), mean ratio {:.6}; NaN/Inf: reference {}/{}, test {}/{}",
+            a.test.display(), a.reference.display(), e.width, e.height, e.rmse, e.relmse, e.mae, e.flip, e.flip_ppd, e.mean_ratio,
+            e.reference_nonfinite.nan, e.reference_nonfinite.inf, e.test_nonfinite.nan, e.test_nonfinite.inf
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
@@ -486,6 +524,7 @@ fn main() -> ExitCode {
         Command::Rays(r) => rays(r),
         Command::Export(e) => export(e),
         Command::Compile(c) => compile(c),
+        Command::Compare(a) => compare(a),
         Command::Adapters => {
             for a in gpu::adapters() {
                 println!("{} ({:?}, {:?}, driver {} {})", a.name, a.device_type, a.backend, a.driver, a.driver_info);

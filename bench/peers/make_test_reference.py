@@ -1,0 +1,62 @@
+"""Makes tests/data/cornell-box-mitsuba-32.exr and its standard-error image for tests/reference_mitsuba.rs.
+
+Mitsuba 3.9 `llvm_ad_rgb` renders our Cornell box (scenes/cornell-box.obj) as render_mitsuba.py
+does: 32x32 pixels, 6 bounces (max_depth 8), Cornell's camera (eye 0.278,0.273,0.8, target
+0.278,0.273,0, up 0,1,0, vertical fov 39.3076 degrees), box filter. It renders CHUNKS independent
+images of SPP_PER_CHUNK samples each (seeds 1000..), and writes
+- cornell-box-mitsuba-32.exr: their mean (CHUNKS x SPP_PER_CHUNK samples per pixel);
+- cornell-box-mitsuba-32-stderr.exr: the standard error of that mean per pixel channel,
+  sqrt(s^2 / CHUNKS) with s^2 the unbiased variance of the chunk means,
+so the test can add the reference's own noise to its variance.
+
+Run: DRJIT_LIBLLVM_PATH=/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1 \
+     bench/.venv/bin/python bench/peers/make_test_reference.py   (bench/peers.sh sets up the venv)
+"""
+import json
+import os
+import sys
+import tempfile
+import time
+from types import SimpleNamespace
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(os.path.dirname(HERE))
+sys.path.insert(0, HERE)
+
+import numpy as np  # noqa: E402
+import mitsuba as mi  # noqa: E402
+import render_mitsuba  # noqa: E402
+
+CHUNKS = 16
+SPP_PER_CHUNK = 8192
+SIZE = 32
+
+
+def main():
+    mi.set_variant("llvm_ad_rgb")
+    args = SimpleNamespace(
+        scene=os.path.join(ROOT, "scenes", "cornell-box.obj"), width=SIZE, height=SIZE, bounces=6,
+        eye=(0.278, 0.273, 0.8), target=(0.278, 0.273, 0.0), up=(0.0, 1.0, 0.0), fov=39.3076,
+    )
+    t0 = time.perf_counter()
+    chunks = []
+    with tempfile.TemporaryDirectory() as tmp:
+        scene = mi.load_dict(render_mitsuba.scene_dict(args, tmp))
+        for c in range(CHUNKS):
+            img = mi.render(scene, spp=SPP_PER_CHUNK, seed=1000 + c)
+            chunks.append(np.asarray(img, dtype=np.float64)[:, :, :3])
+    chunks = np.stack(chunks)
+    mean = chunks.mean(axis=0)
+    stderr = np.sqrt(chunks.var(axis=0, ddof=1) / CHUNKS)
+    out = os.path.join(ROOT, "tests", "data")
+    os.makedirs(out, exist_ok=True)
+    for name, a in [("cornell-box-mitsuba-32.exr", mean), ("cornell-box-mitsuba-32-stderr.exr", stderr)]:
+        mi.util.write_bitmap(os.path.join(out, name), mi.Bitmap(a.astype(np.float32), pixel_format=mi.Bitmap.PixelFormat.RGB), write_async=False)
+    info = {"renderer": f"mitsuba {mi.__version__} llvm_ad_rgb", "chunks": CHUNKS, "spp_per_chunk": SPP_PER_CHUNK,
+            "spp": CHUNKS * SPP_PER_CHUNK, "seconds": time.perf_counter() - t0, "mean": float(mean.mean()),
+            "median_relative_stderr": float(np.median(stderr / np.maximum(mean, 1e-6)))}
+    print(json.dumps(info))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,91 @@
+//! kdtrace against an independent renderer: our Cornell box rendered by Mitsuba 3
+//! (tests/data/cornell-box-mitsuba-32.exr, 131072 spp, made by bench/peers/make_test_reference.sh)
+//! and by kdtrace on the CPU with the same camera, 6 bounces and Russian roulette from bounce 5.
+//!
+//! Statistics: kdtrace renders K = 16 independent images (seeds 1..=16) of N = 256 spp each. Per
+//! pixel channel, the K image values are K independent, identically distributed estimates; their
+//! mean m and unbiased variance s² give the one-sample t statistic t = (m − r) / √(s²/K) with
+//! K − 1 degrees of freedom against the reference value r (`kdtrace::metrics::mean_test`). The
+//! reference has its own noise: its standard error e per pixel (from 16 chunks, stored beside
+//! it) is added in quadrature, t = (m − r) / √(s²/K + e²) (e is about 1/6 of √(s²/K) here).
+//! All 3·32·32 = 3072 channel tests are made at the Šidák level 1 − (1 − α)^(1/3072) with
+//! α = 0.01, so the chance that a correct renderer fails anywhere is 1%. With fixed seeds the
+//! outcome is deterministic. Besides, the mean over the image must be within 1% of Mitsuba's.
+//! Both checks are shown to fail on a wrong reference (mirrored, or 2% brighter).
+use kdtrace::camera::Camera;
+use kdtrace::image_io::read_exr;
+use kdtrace::kdbuild::BuildSettings;
+use kdtrace::metrics::{pixel_test, pointwise, LinearImage, PixelStats, PixelTest};
+use kdtrace::render::RenderSettings;
+use kdtrace::cpu;
+use shared::glam::Vec3;
+use std::path::PathBuf;
+
+const SIZE: u32 = 32;
+const SEEDS: u32 = 16;
+const SPP: u32 = 256;
+const ALPHA: f64 = 0.01;
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+fn read(name: &str) -> LinearImage {
+    let (w, h, px) = read_exr(&root().join("tests/data").join(name)).unwrap();
+    LinearImage::new(w, h, px).unwrap()
+}
+
+/// Mean and unbiased variance over seeds of kdtrace's image, per pixel channel.
+fn kdtrace_seed_statistics() -> (LinearImage, LinearImage) {
+    let loaded = kdtrace::load(&root().join("scenes/cornell-box.obj"), BuildSettings::default()).unwrap();
+    let camera = Camera { eye: Vec3::new(0.278, 0.273, 0.8), target: Vec3::new(0.278, 0.273, 0.0), up: Vec3::Y, fov_deg: 39.3076 };
+    let n = (SIZE * SIZE) as usize;
+    let (mut s1, mut s2) = (vec![[0f64; 3]; n], vec![[0f64; 3]; n]);
+    for seed in 1..=SEEDS {
+        let s = RenderSettings { width: SIZE, height: SIZE, spp: SPP, max_bounces: 6, seed, rr_start: 5, ..RenderSettings::with_camera(camera) };
+        let r = cpu::render(&loaded.compiled, &s, &|_, _| {}).unwrap();
+        assert_eq!(r.zeroed_samples(), 0);
+        for (i, p) in r.mean().iter().enumerate() {
+            for k in 0..3 {
+                s1[i][k] += p[k] as f64;
+                s2[i][k] += p[k] as f64 * p[k] as f64;
+            }
+        }
+    }
+    let k = SEEDS as f64;
+    let mean = s1.iter().map(|p| p.map(|v| (v / k) as f32)).collect();
+    let var = s1.iter().zip(&s2).map(|(a, b)| [0, 1, 2].map(|c| ((b[c] - a[c] * a[c] / k) / (k - 1.0)).max(0.0) as f32)).collect();
+    (LinearImage::new(SIZE, SIZE, mean).unwrap(), LinearImage::new(SIZE, SIZE, var).unwrap())
+}
+
+/// The per-pixel test with the reference's standard error folded into the variance:
+/// s²/K + e² = (s² + K·e²)/K.
+fn test_against(reference: &LinearImage, stderr: &LinearImage, mean: &LinearImage, var: &LinearImage) -> PixelTest {
+    let k = SEEDS as f32;
+    let variance = LinearImage::new(SIZE, SIZE, var.pixels.iter().zip(&stderr.pixels).map(|(v, e)| [0, 1, 2].map(|c| v[c] + k * e[c] * e[c])).collect()).unwrap();
+    let stats = PixelStats { mean: mean.clone(), variance, count: vec![SEEDS as u64; (SIZE * SIZE) as usize] };
+    pixel_test(reference, &stats, ALPHA).unwrap()
+}
+
+#[test]
+fn cornell_box_matches_mitsuba_per_pixel_and_in_mean() {
+    let reference = read("cornell-box-mitsuba-32.exr");
+    let stderr = read("cornell-box-mitsuba-32-stderr.exr");
+    assert_eq!((reference.width, reference.height), (SIZE, SIZE));
+    let (mean, var) = kdtrace_seed_statistics();
+
+    let (_, _, _, ratio, _) = pointwise(&reference, &mean).unwrap();
+    let t = test_against(&reference, &stderr, &mean, &var);
+    eprintln!("mean ratio kdtrace/Mitsuba {ratio:.5}; per-pixel test: {t:?}");
+    assert!((ratio - 1.0).abs() < 0.01, "image mean ratio {ratio}");
+    assert!(t.pass && t.tests == 3 * (SIZE * SIZE) as u64, "{t:?}");
+
+    // The same checks reject a wrong reference: mirrored left to right (red and green walls
+    // swap sides) fails per pixel, 2% brighter fails the mean.
+    let mirrored = LinearImage::new(SIZE, SIZE, (0..SIZE * SIZE).map(|i| reference.pixels[((i / SIZE) * SIZE + SIZE - 1 - i % SIZE) as usize]).collect()).unwrap();
+    let bad = test_against(&mirrored, &stderr, &mean, &var);
+    assert!(!bad.pass && bad.rejected > 100, "mirrored reference accepted: {bad:?}");
+    let brighter = LinearImage::new(SIZE, SIZE, reference.pixels.iter().map(|p| p.map(|c| c * 1.02)).collect()).unwrap();
+    let (_, _, _, ratio_bright, _) = pointwise(&brighter, &mean).unwrap();
+    assert!((ratio_bright - 1.0).abs() > 0.01, "2% brighter reference accepted: ratio {ratio_bright}");
+}

@@ -35,11 +35,16 @@ fn all_traversal_and_dispatch_variants_render_the_same_image() {
     let lit = reference.mean().iter().filter(|p| p[0] + p[1] + p[2] > 0.01).count();
     assert!(lit > reference.sum.len() / 2, "the scene should be mostly lit ({lit} lit pixels)");
     same(&reference, &cpu::render(&c, &RenderSettings { traversal: Traversal::Short, ..base }, &no_progress).unwrap(), "CPU short stack");
+    // `auto` takes the full stack on the CPU path (measured faster there).
+    let auto = cpu::render(&c, &RenderSettings { traversal: Traversal::Auto, ..base }, &no_progress).unwrap();
+    assert_eq!(auto.traversal, Traversal::Full);
+    same(&reference, &auto, "CPU auto");
     let g = gpu::Gpu::open(None).expect("a Vulkan adapter (lavapipe in CI)");
-    for traversal in [Traversal::Full, Traversal::Short] {
+    for traversal in [Traversal::Full, Traversal::Short, Traversal::Auto] {
         for dispatch in [Dispatch::Plain, Dispatch::Persistent] {
             let img = g.render(&c, &RenderSettings { traversal, dispatch, ..base }, &no_progress).unwrap();
             same(&reference, &img, &format!("GPU {traversal:?} {dispatch:?} on {}", g.adapter.name));
+            assert_eq!(img.traversal, traversal.resolve(g.is_cpu()), "the image reports the traversal that made it");
         }
     }
 }
@@ -63,6 +68,7 @@ fn cost_aov_counts_the_camera_ray_work_on_both_devices() {
         match traversal {
             Traversal::Full => assert_eq!(restarts, 0.0, "the full stack never restarts"),
             Traversal::Short => assert!(restarts > 0.0, "a 4-entry stack on a 7k-triangle tree restarts somewhere"),
+            Traversal::Auto => unreachable!(),
         }
     }
 }

@@ -11,6 +11,7 @@ const TILE: u32 = 16;
 
 pub fn render(c: &Compiled, s: &RenderSettings, progress: Progress) -> Result<Rendered> {
     s.check()?;
+    let s = &RenderSettings { traversal: s.traversal.resolve(true), ..*s };
     let params = c.params(s, 0, s.spp)?;
     let scene = c.view(&params);
     let (w, h) = (s.width, s.height);
@@ -49,5 +50,5 @@ pub fn render(c: &Compiled, s: &RenderSettings, progress: Progress) -> Result<Re
             }
         }
     }
-    Ok(Rendered { width: w, height: h, spp: s.spp, sum, primary })
+    Ok(Rendered { width: w, height: h, spp: s.spp, sum, primary, traversal: s.traversal })
 }

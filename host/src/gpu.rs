@@ -152,6 +152,11 @@ impl Gpu {
         Ok(Self { device, queue, render_pipeline, persistent_pipeline, cast_pipeline, bind_layout, adapter: info })
     }
 
+    /// Whether the adapter runs on the CPU (lavapipe, WARP): its limits and speeds differ.
+    pub fn is_cpu(&self) -> bool {
+        self.adapter.device_type == wgpu::DeviceType::Cpu
+    }
+
     fn storage(&self, label: &str, data: &[u8]) -> wgpu::Buffer {
         self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents: data, usage: wgpu::BufferUsages::STORAGE })
     }
@@ -215,6 +220,7 @@ impl Gpu {
 
     pub fn render(&self, c: &Compiled, s: &RenderSettings, progress: Progress) -> Result<Rendered> {
         s.check()?;
+        let s = &RenderSettings { traversal: s.traversal.resolve(self.is_cpu()), ..*s };
         let pixels = s.width as u64 * s.height as u64;
         self.check_size("image", pixels as usize * 16)?;
         let scene = self.upload_scene(c)?;
@@ -225,7 +231,7 @@ impl Gpu {
         let work = self.device.create_buffer(&wgpu::BufferDescriptor { label: Some("work queue"), size: 16, usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST, mapped_at_creation: false });
         let group = self.bind(&scene, &accum, &primary, &rays, &results, &work);
         // Work per invocation and dispatch, bounded on CPU adapters (see `CPU_ADAPTER_*`).
-        let cpu_adapter = self.adapter.device_type == wgpu::DeviceType::Cpu;
+        let cpu_adapter = self.is_cpu();
         let batches = pixels.div_ceil(PERSISTENT_GROUP as u64) as u32;
         let (max_per_pass, rounds, persistent_groups) = match (s.dispatch, cpu_adapter) {
             (Dispatch::Persistent, true) => (1, CPU_ADAPTER_PERSISTENT_ROUNDS, batches.div_ceil(CPU_ADAPTER_PERSISTENT_ROUNDS)),
@@ -253,7 +259,7 @@ impl Gpu {
         }
         let sum: Vec<Vec4> = self.read_back(&accum, accum_bytes)?;
         let primary: Vec<u32> = self.read_back(&primary, pixels * 4)?;
-        Ok(Rendered { width: s.width, height: s.height, spp: s.spp, sum, primary })
+        Ok(Rendered { width: s.width, height: s.height, spp: s.spp, sum, primary, traversal: s.traversal })
     }
 
     /// Casts a batch of rays through the scene's tree (no shading); one result per ray.

@@ -181,7 +181,8 @@ struct ImageArgs {
     /// Print one JSON line to stdout instead of a progress bar.
     #[arg(long)]
     json: bool,
-    /// k-d traversal: a short stack with restart, or a stack as deep as the tree.
+    /// k-d traversal: a short stack with restart, a stack as deep as the tree, or the faster one
+    /// for the device (full on CPUs and lavapipe, short on GPUs).
     #[arg(long, value_enum, default_value_t)]
     traversal: Traversal,
     /// GPU work distribution: one invocation per pixel, or persistent threads.
@@ -317,7 +318,7 @@ fn render(r: RenderArgs) -> Result<ExitCode> {
             "spp": s.spp, "width": s.width, "height": s.height, "bounces": s.max_bounces, "seed": s.seed,
             "load_s": loaded.load_s, "build_s": loaded.build_s, "render_s": render_s,
             "samples_per_s": samples / render_s, "zeroed_samples": img.zeroed_samples(),
-            "traversal": s.traversal, "dispatch": s.dispatch, "aov": s.aov,
+            "traversal": img.traversal, "dispatch": s.dispatch, "aov": s.aov,
         });
         let mut line = line;
         if s.aov == Aov::Cost {
@@ -391,7 +392,7 @@ fn tree(t: TreeArgs) -> Result<ExitCode> {
 }
 
 fn rays(r: RaysArgs) -> Result<ExitCode> {
-    use kdtrace::raybench::{band_samples, fit_costs, make_rays, measure, RayKind};
+    use kdtrace::raybench::{ideal_mrays_per_s, make_rays, measure, RayKind};
     let loaded = load(&r.scene)?;
     let c = &loaded.compiled;
     let s = settings(&r.image, &loaded)?;
@@ -400,19 +401,20 @@ fn rays(r: RaysArgs) -> Result<ExitCode> {
         Device::Cpu => None,
     };
     let adapter = g.as_ref().map_or_else(|| format!("cpu ({} threads)", rayon::current_num_threads()), |g| g.adapter.name.clone());
-    let primary = make_rays(c, &s, RayKind::Primary, s.traversal)?;
-    let costs = fit_costs(&band_samples(c, g.as_ref(), &primary, 8, r.repeats)?);
+    let build = kdbuild::BuildSettings::default();
+    let traversal = s.traversal.resolve(g.as_ref().is_none_or(|g| g.is_cpu()));
+    let mut primary_rate = None;
     for kind in [RayKind::Primary, RayKind::Ao, RayKind::Diffuse] {
-        let batch = make_rays(c, &s, kind, s.traversal)?;
+        let batch = make_rays(c, &s, kind, traversal)?;
         let (t, _) = measure(c, g.as_ref(), kind, &batch, r.repeats)?;
-        let ideal = costs.map(|c| c.ideal_mrays_per_s(t.nodes_per_ray, t.tests_per_ray));
+        let primary = primary_rate.get_or_insert_with(|| t.clone());
+        let ideal = Some(ideal_mrays_per_s(primary, t.nodes_per_ray, t.tests_per_ray, build.traversal_cost as f64, build.intersection_cost as f64));
         if r.image.json {
             let mut line = serde_json::to_value(&t)?;
             let extra = json!({
                 "scene": r.scene, "device": if r.device == Device::Cpu { "cpu" } else { "gpu" }, "adapter": adapter,
-                "traversal": s.traversal, "triangles": c.scene.triangles.len(), "width": s.width, "height": s.height,
+                "traversal": traversal, "triangles": c.scene.triangles.len(), "width": s.width, "height": s.height,
                 "ideal_mrays_per_s": ideal, "measured_over_ideal": ideal.map(|i| t.mrays_per_s / i),
-                "costs": costs,
             });
             line.as_object_mut().unwrap().extend(extra.as_object().unwrap().clone());
             println!("{line}");
@@ -420,7 +422,7 @@ fn rays(r: RaysArgs) -> Result<ExitCode> {
             println!(
                 "{:?}: {} rays ({} hits) in {:.4} s: {:.2} Mrays/s; per ray {:.1} nodes, {:.1} tests, {:.3} restarts; ideal {} ({adapter}, {:?} stack)",
                 kind, t.rays, t.hits, t.seconds, t.mrays_per_s, t.nodes_per_ray, t.tests_per_ray, t.restarts_per_ray,
-                ideal.map_or("n/a".into(), |i| format!("{i:.2} Mrays/s, measured/ideal {:.2}", t.mrays_per_s / i)), s.traversal
+                ideal.map_or("n/a".into(), |i| format!("{i:.2} Mrays/s, measured/ideal {:.2}", t.mrays_per_s / i)), traversal
             );
         }
     }

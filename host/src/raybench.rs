@@ -5,11 +5,8 @@
 //! ray-casting kernel.
 //!
 //! Alongside rays/s it reports the traversal's work per ray (nodes visited, triangles tested,
-//! restarts) and an ideal rate, our stand-in for Aila & Laine's simulated upper bound: the rate
-//! this device would reach if every ray setup, node step and triangle test cost what it costs
-//! for coherent primary rays. The per-operation costs come from a least-squares fit over bands of
-//! primary rays on the same device (`fit_costs`); measured/ideal then shows what incoherence
-//! (divergence, cache misses) costs.
+//! restarts) and an ideal rate (`ideal_mrays_per_s`), our stand-in for Aila & Laine's simulated
+//! upper bound: measured/ideal shows what incoherence (divergence, cache misses) costs each kind.
 use crate::gpu::Gpu;
 use crate::render::{Compiled, RenderSettings, Traversal};
 use anyhow::{bail, Result};
@@ -134,87 +131,30 @@ pub fn measure(c: &Compiled, gpu: Option<&Gpu>, kind: RayKind, rays: &[RayQuery]
     Ok((t, results))
 }
 
-/// One timed batch: (rays, node steps, triangle tests, seconds).
-pub type Sample = (f64, f64, f64, f64);
-
-/// Times `bands` equal slices of `rays` (image rows, so their mix of empty sky, node steps and
-/// triangle tests differs) and returns one `Sample` per slice, for `fit_costs`.
-pub fn band_samples(c: &Compiled, gpu: Option<&Gpu>, rays: &[RayQuery], bands: usize, repeats: usize) -> Result<Vec<Sample>> {
-    let per = rays.len().div_ceil(bands.max(1));
-    let mut out = Vec::new();
-    for chunk in rays.chunks(per.max(1)) {
-        let (t, results) = measure(c, gpu, RayKind::Primary, chunk, repeats)?;
-        let nodes = results.iter().map(|r| r.nodes as f64).sum();
-        let tests = results.iter().map(|r| r.tests as f64).sum();
-        out.push((chunk.len() as f64, nodes, tests, t.seconds));
-    }
-    Ok(out)
-}
-
-/// The cost model t = c·rays + a·nodes + b·tests (per-ray setup, node step, triangle test, at the
-/// device's full parallelism) fitted by least squares to timed batches. `None` when the batches
-/// cannot separate the three costs or a cost comes out negative.
-pub fn fit_costs(samples: &[Sample]) -> Option<Costs> {
-    // Normal equations AᵀA x = Aᵀt for rows (rays, nodes, tests), solved by Cramer's rule.
-    let mut m = [[0.0f64; 3]; 3];
-    let mut v = [0.0f64; 3];
-    for &(r, n, k, t) in samples {
-        let row = [r, n, k];
-        for i in 0..3 {
-            for j in 0..3 {
-                m[i][j] += row[i] * row[j];
-            }
-            v[i] += row[i] * t;
-        }
-    }
-    let det3 = |a: [[f64; 3]; 3]| a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0]) + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
-    let d = det3(m);
-    let scale = m[0][0] * m[1][1] * m[2][2];
-    if !(d.abs() > 1e-9 * scale) {
-        return None;
-    }
-    let solve = |col: usize| {
-        let mut a = m;
-        for (i, row) in a.iter_mut().enumerate() {
-            row[col] = v[i];
-        }
-        det3(a) / d
-    };
-    let (per_ray, per_node, per_test) = (solve(0), solve(1), solve(2));
-    (per_ray >= 0.0 && per_node > 0.0 && per_test > 0.0).then_some(Costs { per_ray, per_node, per_test })
-}
-
-/// Seconds per ray, per node step and per triangle test.
-#[derive(Clone, Copy, Debug, Serialize)]
-pub struct Costs {
-    pub per_ray: f64,
-    pub per_node: f64,
-    pub per_test: f64,
-}
-
-impl Costs {
-    /// Mrays/s for rays doing this much work on average.
-    pub fn ideal_mrays_per_s(&self, nodes_per_ray: f64, tests_per_ray: f64) -> f64 {
-        1e-6 / (self.per_ray + self.per_node * nodes_per_ray + self.per_test * tests_per_ray)
-    }
+/// The ideal rate of rays doing `nodes_per_ray` node steps and `tests_per_ray` triangle tests:
+/// the rate of coherent primary rays on the same device, scaled by the SAH's own measure of the
+/// work, K_T per node step and K_I per triangle test (`BuildSettings`). Aila & Laine's simulated
+/// upper bound assumes ideal SIMD and memory behaviour; this is our measurable stand-in, the rate
+/// every kind would reach if it did its work as efficiently as primary rays do.
+pub fn ideal_mrays_per_s(primary: &Throughput, nodes_per_ray: f64, tests_per_ray: f64, traversal_cost: f64, intersection_cost: f64) -> f64 {
+    let work = |n: f64, t: f64| traversal_cost * n + intersection_cost * t;
+    primary.mrays_per_s * work(primary.nodes_per_ray, primary.tests_per_ray) / work(nodes_per_ray, tests_per_ray).max(f64::MIN_POSITIVE)
 }
 
 #[cfg(test)]
 mod tests {
-    use super::fit_costs;
+    use super::*;
 
     #[test]
-    fn cost_fit_recovers_a_linear_model() {
-        let samples: Vec<_> = (1..20)
-            .map(|i| {
-                let (r, n, k) = (1000.0 + (i % 3) as f64 * 100.0, i as f64 * 1e4, ((i * i) % 7) as f64 * 1e3 + 1.0);
-                (r, n, k, 1e-8 * r + 2e-9 * n + 5e-9 * k)
-            })
-            .collect();
-        let c = fit_costs(&samples).unwrap();
-        assert!((c.per_ray - 1e-8).abs() < 1e-13 && (c.per_node - 2e-9).abs() < 1e-14 && (c.per_test - 5e-9).abs() < 1e-14, "{c:?}");
-        assert!((c.ideal_mrays_per_s(10.0, 2.0) - 1e-6 / (1e-8 + 2e-8 + 1e-8)).abs() < 1e-6);
-        // Proportional columns cannot be separated.
-        assert!(fit_costs(&[(1.0, 2.0, 3.0, 1.0), (2.0, 4.0, 6.0, 2.0), (3.0, 6.0, 9.0, 3.0)]).is_none());
+    fn ideal_rate_scales_the_primary_rate_by_sah_work() {
+        let primary = Throughput { kind: RayKind::Primary, rays: 1, hits: 1, seconds: 1.0, mrays_per_s: 10.0, nodes_per_ray: 20.0, tests_per_ray: 3.0, restarts_per_ray: 0.0 };
+        // Same work: same rate. Twice the work (in K_T·nodes + K_I·tests): half the rate.
+        assert!((ideal_mrays_per_s(&primary, 20.0, 3.0, 15.0, 20.0) - 10.0).abs() < 1e-12);
+        let twice = ideal_mrays_per_s(&primary, 40.0, 6.0, 15.0, 20.0);
+        assert!((twice - 5.0).abs() < 1e-12);
+        // A triangle test costs K_I / K_T node steps.
+        let a = ideal_mrays_per_s(&primary, 20.0 + 20.0, 3.0, 15.0, 20.0);
+        let b = ideal_mrays_per_s(&primary, 20.0, 3.0 + 15.0, 15.0, 20.0);
+        assert!((a - b).abs() < 1e-12);
     }
 }

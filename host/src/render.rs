@@ -12,11 +12,26 @@ use shared::scene::SceneView;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Traversal {
-    /// A stack of `shared::short_stack::SHORT_STACK` entries with restart (Horn et al. 2007).
+    /// The faster one for the device: the full stack on CPUs (the CPU path and lavapipe, where it
+    /// measured 5–25% faster; BENCHMARKS.md), the short stack on GPUs, whose threads hold far
+    /// less fast memory.
     #[default]
+    Auto,
+    /// A stack of `shared::short_stack::SHORT_STACK` entries with restart (Horn et al. 2007).
     Short,
     /// A stack as deep as the tree.
     Full,
+}
+
+impl Traversal {
+    /// `Auto` made concrete for a device that is (`cpu`) or is not a CPU.
+    pub fn resolve(self, cpu: bool) -> Traversal {
+        match self {
+            Traversal::Auto if cpu => Traversal::Full,
+            Traversal::Auto => Traversal::Short,
+            t => t,
+        }
+    }
 }
 
 /// How the GPU spreads pixels over invocations (the CPU always uses rayon over tiles).
@@ -136,8 +151,9 @@ impl Compiled {
             light_count: self.scene.lights.len() as u32,
             inv_width: 1.0 / s.width as f32,
             inv_height: 1.0 / s.height as f32,
+            // Renderers resolve `Auto` first; left unresolved it means the full stack.
             traversal: match s.traversal {
-                Traversal::Full => TRAVERSAL_FULL_STACK,
+                Traversal::Full | Traversal::Auto => TRAVERSAL_FULL_STACK,
                 Traversal::Short => TRAVERSAL_SHORT_STACK,
             },
             aov: match s.aov {
@@ -175,6 +191,8 @@ pub struct Rendered {
     pub spp: u32,
     pub sum: Vec<Vec4>,
     pub primary: Vec<u32>,
+    /// The traversal that rendered it (`Auto` resolved for the device).
+    pub traversal: Traversal,
 }
 
 impl Rendered {

@@ -1,54 +1,70 @@
-//! The CPU reference renderer: rayon over tiles, each pixel through `shared::integrator`, the same
+//! The CPU reference renderer: rayon over rows, each pixel through `shared::integrator`, the same
 //! function the GPU kernel runs. Non-finite samples are zeroed and logged with their pixel.
 use crate::render::{Compiled, Progress, RenderSettings, Rendered};
 use anyhow::Result;
 use rayon::prelude::*;
 use shared::glam::Vec4;
 use shared::integrator::render_pixel;
+use shared::layout::NO_HIT;
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::Instant;
 
-const TILE: u32 = 16;
+/// With a time limit, each pass is sized to take about this long, so the render stops close to
+/// its budget.
+const PASS_SECONDS: f64 = 0.25;
 
+/// Renders on the CPU: rayon over image rows, every pixel through `shared::integrator`. Without a
+/// time limit all samples are one pass; with one, passes of whole samples for every pixel run
+/// until the budget is spent, so every pixel has the same number of samples (unbiased).
 pub fn render(c: &Compiled, s: &RenderSettings, progress: Progress) -> Result<Rendered> {
     s.check()?;
     let s = &RenderSettings { traversal: s.traversal.resolve(true), ..*s };
-    let params = c.params(s, 0, s.spp)?;
-    let scene = c.view(&params);
     let (w, h) = (s.width, s.height);
-    let tiles_x = w.div_ceil(TILE);
-    let tiles: Vec<(u32, u32)> = (0..h.div_ceil(TILE)).flat_map(|ty| (0..tiles_x).map(move |tx| (tx, ty))).collect();
+    let n = (w * h) as usize;
+    let mut sum = vec![Vec4::ZERO; n];
+    let mut sum_sq = vec![Vec4::ZERO; n];
+    let mut primary = vec![NO_HIT; n];
     let total = w as u64 * h as u64 * s.spp as u64;
     let done = AtomicU64::new(0);
-    let rendered: Vec<(u32, u32, Vec<(Vec4, u32)>)> = tiles
-        .par_iter()
-        .map(|&(tx, ty)| {
-            let mut out = Vec::with_capacity((TILE * TILE) as usize);
-            for y in ty * TILE..((ty + 1) * TILE).min(h) {
-                for x in tx * TILE..((tx + 1) * TILE).min(w) {
-                    let pass = render_pixel(&scene, &params, x, y, Vec4::ZERO);
-                    if pass.sum.w > 0.0 {
-                        eprintln!("warning: pixel ({x}, {y}): {} non-finite or negative sample(s) zeroed", pass.sum.w);
+    let clock = Instant::now();
+    let mut start = 0u32;
+    let mut count = if s.time_limit_s.is_some() { 1 } else { s.spp };
+    while start < s.spp {
+        count = count.min(s.spp - start);
+        let params = c.params(s, start, count)?;
+        let scene = c.view(&params);
+        let pass_clock = Instant::now();
+        sum.par_chunks_mut(w as usize)
+            .zip(sum_sq.par_chunks_mut(w as usize))
+            .zip(primary.par_chunks_mut(w as usize))
+            .enumerate()
+            .for_each(|(y, ((sum, sum_sq), primary))| {
+                for x in 0..w as usize {
+                    let before = sum[x].w;
+                    let pass = render_pixel(&scene, &params, x as u32, y as u32, sum[x], sum_sq[x]);
+                    if pass.sum.w > before {
+                        eprintln!("warning: pixel ({x}, {y}): {} non-finite or negative sample(s) zeroed", pass.sum.w - before);
                     }
-                    out.push((pass.sum, pass.primary));
+                    sum[x] = pass.sum;
+                    sum_sq[x] = pass.sum_sq;
+                    if start == 0 {
+                        primary[x] = pass.primary;
+                    }
                 }
+                let k = w as u64 * count as u64;
+                progress(done.fetch_add(k, Ordering::Relaxed) + k, total);
+            });
+        start += count;
+        if let Some(limit) = s.time_limit_s {
+            let elapsed = clock.elapsed().as_secs_f64();
+            if elapsed >= limit {
+                break;
             }
-            let n = out.len() as u64 * s.spp as u64;
-            progress(done.fetch_add(n, Ordering::Relaxed) + n, total);
-            (tx, ty, out)
-        })
-        .collect();
-    let mut sum = vec![Vec4::ZERO; (w * h) as usize];
-    let mut primary = vec![0u32; (w * h) as usize];
-    for (tx, ty, out) in rendered {
-        let mut k = 0;
-        for y in ty * TILE..((ty + 1) * TILE).min(h) {
-            for x in tx * TILE..((tx + 1) * TILE).min(w) {
-                let i = (y * w + x) as usize;
-                sum[i] = out[k].0;
-                primary[i] = out[k].1;
-                k += 1;
-            }
+            // Size the next pass from this one's speed, within what is left of the budget.
+            let per_sample = pass_clock.elapsed().as_secs_f64() / count as f64;
+            let fit = (PASS_SECONDS.min(limit - elapsed) / per_sample.max(1e-9)).floor();
+            count = (fit as u32).max(1);
         }
     }
-    Ok(Rendered { width: w, height: h, spp: s.spp, sum, primary, traversal: s.traversal })
+    Ok(Rendered { width: w, height: h, spp: start, sum, sum_sq, primary, traversal: s.traversal })
 }

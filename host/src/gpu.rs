@@ -57,10 +57,12 @@ mod binding {
     pub const RESULTS: u32 = 10;
     /// The persistent kernel's work counter.
     pub const QUEUE: u32 = 11;
+    /// Running sums of squared radiance (per-pixel variance).
+    pub const ACCUM_SQ: u32 = 12;
     /// Bindings in all: the uniform parameters, then storage buffers.
-    pub const COUNT: u32 = 12;
+    pub const COUNT: u32 = 13;
     /// Storage bindings the kernel writes; every other storage binding is read-only.
-    pub const WRITABLE: [u32; 4] = [ACCUM, PRIMARY, RESULTS, QUEUE];
+    pub const WRITABLE: [u32; 5] = [ACCUM, PRIMARY, RESULTS, QUEUE, ACCUM_SQ];
 }
 
 /// One explicit layout for every entry point. wgpu's automatic layout keeps only the bindings an
@@ -198,8 +200,9 @@ impl Gpu {
     }
 
     /// The bind group of all bindings: the scene's, then the outputs and ray buffers.
-    fn bind(&self, s: &SceneBuffers, accum: &wgpu::Buffer, primary: &wgpu::Buffer, rays: &wgpu::Buffer, results: &wgpu::Buffer, queue: &wgpu::Buffer) -> wgpu::BindGroup {
-        let buffers = [&s.params, &s.nodes, &s.indices, &s.triangles, &s.info, &s.materials, &s.lights, accum, primary, rays, results, queue];
+    #[allow(clippy::too_many_arguments)]
+    fn bind(&self, s: &SceneBuffers, accum: &wgpu::Buffer, primary: &wgpu::Buffer, rays: &wgpu::Buffer, results: &wgpu::Buffer, queue: &wgpu::Buffer, accum_sq: &wgpu::Buffer) -> wgpu::BindGroup {
+        let buffers = [&s.params, &s.nodes, &s.indices, &s.triangles, &s.info, &s.materials, &s.lights, accum, primary, rays, results, queue, accum_sq];
         debug_assert_eq!(buffers.len() as u32, binding::COUNT);
         let entries: Vec<wgpu::BindGroupEntry> = buffers.iter().enumerate().map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() }).collect();
         self.device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some("scene"), layout: &self.bind_layout, entries: &entries })
@@ -226,10 +229,11 @@ impl Gpu {
         let scene = self.upload_scene(c)?;
         let accum_bytes = pixels * std::mem::size_of::<Vec4>() as u64;
         let accum = self.output("accum", accum_bytes);
+        let accum_sq = self.output("accum squares", accum_bytes);
         let primary = self.output("primary", pixels * 4);
         let (rays, results) = (self.output("rays (unused)", 0), self.output("results (unused)", 0));
         let work = self.device.create_buffer(&wgpu::BufferDescriptor { label: Some("work queue"), size: 16, usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST, mapped_at_creation: false });
-        let group = self.bind(&scene, &accum, &primary, &rays, &results, &work);
+        let group = self.bind(&scene, &accum, &primary, &rays, &results, &work, &accum_sq);
         // Work per invocation and dispatch, bounded on CPU adapters (see `CPU_ADAPTER_*`).
         let cpu_adapter = self.is_cpu();
         let batches = pixels.div_ceil(PERSISTENT_GROUP as u64) as u32;
@@ -241,6 +245,7 @@ impl Gpu {
         };
         let per_pass = ((PATHS_PER_PASS / pixels.max(1)) as u32).clamp(1, s.spp.min(max_per_pass));
         let total = pixels * s.spp as u64;
+        let clock = std::time::Instant::now();
         let mut start = 0;
         while start < s.spp {
             let count = per_pass.min(s.spp - start);
@@ -256,10 +261,15 @@ impl Gpu {
             }
             start += count;
             progress(pixels * start as u64, total);
+            // A time limit ends the render between passes: every pixel has `start` samples.
+            if s.time_limit_s.is_some_and(|limit| clock.elapsed().as_secs_f64() >= limit) {
+                break;
+            }
         }
         let sum: Vec<Vec4> = self.read_back(&accum, accum_bytes)?;
+        let sum_sq: Vec<Vec4> = self.read_back(&accum_sq, accum_bytes)?;
         let primary: Vec<u32> = self.read_back(&primary, pixels * 4)?;
-        Ok(Rendered { width: s.width, height: s.height, spp: s.spp, sum, primary, traversal: s.traversal })
+        Ok(Rendered { width: s.width, height: s.height, spp: start, sum, sum_sq, primary, traversal: s.traversal })
     }
 
     /// Casts a batch of rays through the scene's tree (no shading); one result per ray.
@@ -280,8 +290,8 @@ impl Gpu {
         let ray_buffer = self.storage("rays", bytemuck::cast_slice(rays));
         let result_bytes = std::mem::size_of_val(rays) as u64 / std::mem::size_of::<RayQuery>() as u64 * std::mem::size_of::<RayResult>() as u64;
         let results = self.output("results", result_bytes);
-        let (accum, primary, work) = (self.output("accum (unused)", 0), self.output("primary (unused)", 0), self.output("work queue (unused)", 0));
-        let group = self.bind(&scene, &accum, &primary, &ray_buffer, &results, &work);
+        let (accum, primary, work, accum_sq) = (self.output("accum (unused)", 0), self.output("primary (unused)", 0), self.output("work queue (unused)", 0), self.output("accum squares (unused)", 0));
+        let group = self.bind(&scene, &accum, &primary, &ray_buffer, &results, &work, &accum_sq);
         let groups = rays.len().div_ceil(CAST_GROUP as usize);
         if groups > MAX_GROUPS_X as usize {
             bail!("{} rays in one batch: at most {} are supported", rays.len(), MAX_GROUPS_X * CAST_GROUP);

@@ -61,6 +61,13 @@ struct CompareArgs {
     reference: PathBuf,
     /// Test image (.exr or .pfm), same size.
     test: PathBuf,
+    /// The test image's per-sample variance (`render --variance`): adds a per-pixel test of the
+    /// test image against the reference (Šidák-corrected, α = 0.01). Needs --spp.
+    #[arg(long, requires = "spp")]
+    variance: Option<PathBuf>,
+    /// Samples per pixel of the test image.
+    #[arg(long)]
+    spp: Option<u64>,
     /// Print one JSON line instead of text.
     #[arg(long)]
     json: bool,
@@ -150,9 +157,13 @@ enum Device {
 /// then from the built-in defaults (`kdtrace::scene_settings`).
 #[derive(Args, Clone)]
 struct ImageArgs {
-    /// Samples per pixel [scene file, else 64].
+    /// Samples per pixel [scene file, else 64; with a time limit, the most].
     #[arg(long)]
     spp: Option<u32>,
+    /// Stop after SEC seconds, between passes of whole samples (every pixel gets the same
+    /// number); the spp reached is reported [scene file, else none].
+    #[arg(long, value_name = "SEC")]
+    time_limit: Option<f64>,
     /// [scene file, else 512]
     #[arg(long)]
     width: Option<u32>,
@@ -201,6 +212,9 @@ struct RenderArgs {
     out: PathBuf,
     #[arg(long, value_enum, default_value_t = Device::Cpu)]
     device: Device,
+    /// Also write each pixel's per-sample variance (linear EXR), for `compare --variance`.
+    #[arg(long, value_name = "FILE.exr")]
+    variance: Option<PathBuf>,
     #[command(flatten)]
     image: ImageArgs,
 }
@@ -235,6 +249,7 @@ fn flag_settings(a: &ImageArgs) -> SceneSettings {
         spp: a.spp,
         bounces: a.bounces,
         seed: a.seed,
+        time_limit_s: a.time_limit,
         eye: a.eye.map(|v| v.to_array()),
         target: a.target.map(|v| v.to_array()),
         up: a.up.map(|v| v.to_array()),
@@ -297,6 +312,11 @@ fn run_device(device: Device, c: &Compiled, s: &RenderSettings, a: &ImageArgs) -
 
 fn render(r: RenderArgs) -> Result<ExitCode> {
     image_io::check_output_path(&r.out)?;
+    if let Some(v) = &r.variance {
+        if !image_io::is_exr(v) {
+            anyhow::bail!("{}: the variance image is linear: write it as .exr", v.display());
+        }
+    }
     let loaded = load(&r.scene)?;
     let c = &loaded.compiled;
     let s = settings(&r.image, &loaded)?;
@@ -307,7 +327,10 @@ fn render(r: RenderArgs) -> Result<ExitCode> {
     } else {
         image_io::write_image(&r.out, s.width, s.height, &pixels)?;
     }
-    let samples = s.width as f64 * s.height as f64 * s.spp as f64;
+    if let Some(v) = &r.variance {
+        image_io::write_image(v, s.width, s.height, &img.variance())?;
+    }
+    let samples = s.width as f64 * s.height as f64 * img.spp as f64;
     if r.image.json {
         let line = json!({
             "scene": r.scene, "out": r.out,
@@ -315,7 +338,8 @@ fn render(r: RenderArgs) -> Result<ExitCode> {
             "triangles": c.scene.triangles.len(), "lights": c.scene.lights.len(),
             "dropped_degenerate": c.scene.dropped_degenerate,
             "nodes": c.tree.nodes.len(), "tree_depth": c.tree.depth,
-            "spp": s.spp, "width": s.width, "height": s.height, "bounces": s.max_bounces, "seed": s.seed,
+            "spp": img.spp, "spp_max": s.spp, "time_limit_s": s.time_limit_s, "variance": r.variance,
+            "width": s.width, "height": s.height, "bounces": s.max_bounces, "seed": s.seed,
             "load_s": loaded.load_s, "build_s": loaded.build_s, "render_s": render_s,
             "samples_per_s": samples / render_s, "zeroed_samples": img.zeroed_samples(),
             "traversal": img.traversal, "dispatch": s.dispatch, "aov": s.aov,
@@ -332,7 +356,7 @@ fn render(r: RenderArgs) -> Result<ExitCode> {
     } else {
         eprintln!(
             "{}: {} triangles, {}x{} at {} spp on {adapter}: load {:.3} s, build {:.3} s, render {:.3} s ({:.2} Msamples/s)",
-            r.out.display(), c.scene.triangles.len(), s.width, s.height, s.spp, loaded.load_s, loaded.build_s, render_s, samples / render_s / 1e6
+            r.out.display(), c.scene.triangles.len(), s.width, s.height, img.spp, loaded.load_s, loaded.build_s, render_s, samples / render_s / 1e6
         );
     }
     Ok(ExitCode::SUCCESS)
@@ -493,7 +517,7 @@ fn compile(a: CompileArgs) -> Result<ExitCode> {
 }
 
 fn compare(a: CompareArgs) -> Result<ExitCode> {
-    use kdtrace::metrics::{errors, LinearImage};
+    use kdtrace::metrics::{errors, pixel_test, LinearImage, PixelStats};
     let read = |p: &PathBuf| -> Result<LinearImage> {
         let (w, h, px) = image_io::read_linear_image(p)?;
         LinearImage::new(w, h, px)
@@ -503,18 +527,36 @@ fn compare(a: CompareArgs) -> Result<ExitCode> {
         anyhow::bail!("{} is {}x{} but {} is {}x{}: images of different sizes", a.reference.display(), r.width, r.height, a.test.display(), t.width, t.height);
     }
     let e = errors(&r, &t)?;
+    let test = match (&a.variance, a.spp) {
+        (Some(v), Some(spp)) => {
+            let variance = read(v)?;
+            if (variance.width, variance.height) != (t.width, t.height) {
+                anyhow::bail!("{} is {}x{} but {} is {}x{}: images of different sizes", v.display(), variance.width, variance.height, a.test.display(), t.width, t.height);
+            }
+            let count = vec![spp; t.pixels.len()];
+            Some(pixel_test(&r, &PixelStats { mean: t.clone(), variance, count }, 0.01)?)
+        }
+        _ => None,
+    };
     if a.json {
         let mut line = serde_json::to_value(&e)?;
-        line.as_object_mut().unwrap().extend([("reference".to_string(), json!(a.reference)), ("test".to_string(), json!(a.test))]);
+        line.as_object_mut().unwrap().extend([("reference".to_string(), json!(a.reference)), ("test".to_string(), json!(a.test)), ("pixel_test".to_string(), json!(test))]);
         println!("{line}");
     } else {
+        if let Some(p) = &test {
+            println!(
+                "per-pixel test (Šidák, α = 0.01): {} of {} channel values rejected at {:.3e}, smallest p {:.3e}{}: {}",
+                p.rejected, p.tests, p.per_test_alpha, p.min_p, p.worst.map_or(String::new(), |(x, y, k)| format!(" at ({x}, {y}) channel {k}")),
+                if p.pass { "consistent" } else { "INCONSISTENT" }
+            );
+        }
         println!(
             "{} vs reference {} ({}x{}): RMSE {:.6e}, relMSE {:.6e}, MAE {:.6e}, FLIP {:.6} ({} ppd), mean ratio {:.6}; NaN/Inf: reference {}/{}, test {}/{}",
             a.test.display(), a.reference.display(), e.width, e.height, e.rmse, e.relmse, e.mae, e.flip, e.flip_ppd, e.mean_ratio,
             e.reference_nonfinite.nan, e.reference_nonfinite.inf, e.test_nonfinite.nan, e.test_nonfinite.inf
         );
     }
-    Ok(ExitCode::SUCCESS)
+    Ok(if test.is_some_and(|p| !p.pass) { ExitCode::from(1) } else { ExitCode::SUCCESS })
 }
 
 fn main() -> ExitCode {

@@ -250,6 +250,70 @@ pub fn pixel_test(reference: &LinearImage, stats: &PixelStats, alpha: f64) -> Re
     })
 }
 
+/// Two-sided p-value of "both estimates have the same true mean" (Welch's t-test): estimates
+/// `mean_a`, `mean_b` of `count_a`, `count_b` samples with per-sample variances `var_a`, `var_b`.
+/// `None` when either has fewer than two samples; the same zero-variance and non-finite rules as
+/// `mean_test`.
+pub fn two_sample_test(mean_a: f64, var_a: f64, count_a: u64, mean_b: f64, var_b: f64, count_b: u64) -> Option<f64> {
+    if count_a < 2 || count_b < 2 || var_a < 0.0 || var_b < 0.0 {
+        return None;
+    }
+    if !(mean_a.is_finite() && mean_b.is_finite() && var_a.is_finite() && var_b.is_finite()) {
+        return Some(0.0);
+    }
+    let (sa, sb) = (var_a / count_a as f64, var_b / count_b as f64);
+    let d = mean_a - mean_b;
+    if sa + sb == 0.0 {
+        return Some(if d == 0.0 { 1.0 } else { 0.0 });
+    }
+    let t = d / (sa + sb).sqrt();
+    // Welch–Satterthwaite degrees of freedom.
+    let dof = (sa + sb).powi(2) / (sa * sa / (count_a - 1) as f64 + sb * sb / (count_b - 1) as f64);
+    let dist = StudentsT::new(0.0, 1.0, dof.max(1.0)).expect("degrees of freedom ≥ 1");
+    Some((2.0 * dist.sf(t.abs())).min(1.0))
+}
+
+/// Tests every pixel channel of two noisy renders of the same scene (a CPU and a GPU render with
+/// different seeds, say) for equal means, at family-wise level `alpha` with Šidák's correction.
+pub fn two_image_test(a: &PixelStats, b: &PixelStats, alpha: f64) -> Result<PixelTest> {
+    check_sizes(&a.mean, &b.mean)?;
+    check_sizes(&a.mean, &a.variance)?;
+    check_sizes(&b.mean, &b.variance)?;
+    let width = a.mean.width;
+    let mut ps = Vec::with_capacity(a.mean.pixels.len() * 3);
+    let mut untested = 0;
+    for i in 0..a.mean.pixels.len() {
+        for k in 0..3 {
+            let p = two_sample_test(
+                a.mean.pixels[i][k] as f64,
+                a.variance.pixels[i][k] as f64,
+                a.count[i],
+                b.mean.pixels[i][k] as f64,
+                b.variance.pixels[i][k] as f64,
+                b.count[i],
+            );
+            match p {
+                Some(p) => ps.push((p, i, k)),
+                None => untested += 1,
+            }
+        }
+    }
+    let tests = ps.len() as u64;
+    let per_test_alpha = if tests > 0 { sidak_alpha(alpha, tests) } else { alpha };
+    let rejected = ps.iter().filter(|(p, _, _)| *p < per_test_alpha).count() as u64;
+    let worst = ps.iter().min_by(|x, y| x.0.total_cmp(&y.0)).copied();
+    Ok(PixelTest {
+        tests,
+        untested,
+        alpha,
+        per_test_alpha,
+        rejected,
+        min_p: worst.map_or(1.0, |w| w.0),
+        worst: worst.map(|(_, i, k)| (i as u32 % width, i as u32 / width, k)),
+        pass: rejected == 0,
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -71,6 +71,8 @@ pub struct RenderSettings {
     pub traversal: Traversal,
     pub dispatch: Dispatch,
     pub aov: Aov,
+    /// Stop after this many seconds, between passes of whole samples; `spp` is then the most.
+    pub time_limit_s: Option<f64>,
 }
 
 /// Largest image side and sample count accepted: beyond these, buffers or counters overflow.
@@ -93,6 +95,7 @@ impl RenderSettings {
             traversal: Traversal::default(),
             dispatch: Dispatch::default(),
             aov: Aov::default(),
+            time_limit_s: None,
         }
     }
 
@@ -190,6 +193,8 @@ pub struct Rendered {
     pub height: u32,
     pub spp: u32,
     pub sum: Vec<Vec4>,
+    /// Per pixel the sum of squared radiance (`xyz`), for the variance.
+    pub sum_sq: Vec<Vec4>,
     pub primary: Vec<u32>,
     /// The traversal that rendered it (`Auto` resolved for the device).
     pub traversal: Traversal,
@@ -200,6 +205,31 @@ impl Rendered {
     pub fn mean(&self) -> Vec<[f32; 3]> {
         let k = 1.0 / self.spp as f32;
         self.sum.iter().map(|s| [s.x * k, s.y * k, s.z * k]).collect()
+    }
+
+    /// Per-sample variance of each pixel's radiance (unbiased, n − 1 denominator; 0 below two
+    /// samples): with `mean` and `spp`, what a per-pixel test of the image needs.
+    pub fn variance(&self) -> Vec<[f32; 3]> {
+        let n = self.spp as f64;
+        self.sum
+            .iter()
+            .zip(&self.sum_sq)
+            .map(|(s, q)| {
+                let v = |a: f32, b: f32| if n < 2.0 { 0.0 } else { ((b as f64 - (a as f64) * (a as f64) / n) / (n - 1.0)).max(0.0) as f32 };
+                [v(s.x, q.x), v(s.y, q.y), v(s.z, q.z)]
+            })
+            .collect()
+    }
+
+    /// Mean, per-sample variance and sample count of every pixel, for the per-pixel tests of
+    /// `metrics`.
+    pub fn stats(&self) -> anyhow::Result<crate::metrics::PixelStats> {
+        use crate::metrics::{LinearImage, PixelStats};
+        Ok(PixelStats {
+            mean: LinearImage::new(self.width, self.height, self.mean())?,
+            variance: LinearImage::new(self.width, self.height, self.variance())?,
+            count: vec![self.spp as u64; self.sum.len()],
+        })
     }
 
     /// Samples that were non-finite or negative and were zeroed.

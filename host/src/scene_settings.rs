@@ -6,7 +6,7 @@
 //! The same struct comes from a TOML scene file, is stored (as JSON) in a compiled `.kdc` scene,
 //! and is built from the CLI flags, so the three agree by construction.
 use crate::camera::Camera;
-use crate::render::{Aov, Dispatch, RenderSettings, Traversal};
+use crate::render::{Aov, Dispatch, RenderSettings, Traversal, MAX_SPP};
 use anyhow::{bail, Result};
 use serde::{Deserialize, Serialize};
 use shared::glam::Vec3;
@@ -28,8 +28,8 @@ pub struct SceneSettings {
     /// Indirect bounces; 0 = direct light only.
     pub bounces: Option<u32>,
     pub seed: Option<u32>,
-    /// Wall-clock budget in seconds. Parsed, validated and stored; it is honoured once the
-    /// `--time-limit` option of the progressive renderer lands.
+    /// Wall-clock budget in seconds: the render stops between passes of whole samples once it is
+    /// spent. Without an spp it renders as many samples as fit (up to `MAX_SPP`).
     pub time_limit_s: Option<f64>,
     pub eye: Option<[f32; 3]>,
     pub target: Option<[f32; 3]>,
@@ -89,7 +89,7 @@ impl SceneSettings {
         let s = RenderSettings {
             width,
             height,
-            spp: self.spp.unwrap_or(DEFAULT_SPP),
+            spp: self.spp.unwrap_or(if self.time_limit_s.is_some() { MAX_SPP } else { DEFAULT_SPP }),
             max_bounces: self.bounces.unwrap_or(DEFAULT_BOUNCES),
             seed: self.seed.unwrap_or(DEFAULT_SEED),
             rr_start: RR_START,
@@ -98,6 +98,7 @@ impl SceneSettings {
             traversal: Traversal::default(),
             dispatch: Dispatch::default(),
             aov: Aov::default(),
+            time_limit_s: self.time_limit_s,
         };
         s.check()?;
         camera.basis(aspect)?;

@@ -30,14 +30,16 @@ pub fn render_pass(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] lights: &[Light],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] accum: &mut [Vec4],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] primary: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 12)] accum_sq: &mut [Vec4],
 ) {
     if (id.x >= params.width) | (id.y >= params.height) {
         return;
     }
     let scene = SceneView::new(params, nodes, indices, triangles, info, materials, lights);
     let pixel = (id.y * params.width + id.x) as usize;
-    let pass = render_pixel(&scene, params, id.x, id.y, accum[pixel]);
+    let pass = render_pixel(&scene, params, id.x, id.y, accum[pixel], accum_sq[pixel]);
     accum[pixel] = pass.sum;
+    accum_sq[pixel] = pass.sum_sq;
     if params.sample_start == 0 {
         primary[pixel] = pass.primary;
     }
@@ -64,6 +66,7 @@ pub fn render_persistent(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] accum: &mut [Vec4],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] primary: &mut [u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 11)] queue: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 12)] accum_sq: &mut [Vec4],
 ) {
     let scene = SceneView::new(params, nodes, indices, triangles, info, materials, lights);
     let total = params.width * params.height;
@@ -85,8 +88,9 @@ pub fn render_persistent(
             let pixel = base + lane;
             if pixel < total {
                 let (x, y) = (pixel % params.width, pixel / params.width);
-                let pass = render_pixel(&scene, params, x, y, accum[pixel as usize]);
+                let pass = render_pixel(&scene, params, x, y, accum[pixel as usize], accum_sq[pixel as usize]);
                 accum[pixel as usize] = pass.sum;
+                accum_sq[pixel as usize] = pass.sum_sq;
                 if params.sample_start == 0 {
                     primary[pixel as usize] = pass.primary;
                 }

@@ -12,7 +12,7 @@
 //! triangle returns (`intersect_brute_force`), bit for bit, because both call the same
 //! `RayShear::intersect`.
 use crate::glam::Vec3;
-use crate::layout::{KD_MAX_DEPTH, NO_HIT};
+use crate::layout::{KdNode, KD_MAX_DEPTH, NO_HIT};
 use crate::numerics::{gamma, is_finite3, T_SLACK};
 use crate::scene::SceneView;
 use crate::triangle::RayShear;
@@ -118,6 +118,47 @@ pub fn clip_to_bounds(lo: Vec3, hi: Vec3, origin: Vec3, dir: Vec3, inv: Vec3, t_
     Some((t0, t1))
 }
 
+/// The step at one interior node: the child to visit now, the end of the ray's interval in it,
+/// and the far child to visit later over its own interval, if the ray reaches it (Wald's thesis
+/// §7.2; a ray lying in the plane visits both children over the same interval).
+#[derive(Clone, Copy)]
+pub(crate) struct Descent {
+    pub next: u32,
+    pub t1: f32,
+    pub push: bool,
+    pub far: StackEntry,
+}
+
+/// Where the ray goes at interior node `n` (index `node`) over [t0, t1]. Shared by the full- and
+/// the short-stack traversal, so both visit the same children with the same intervals.
+#[inline]
+pub(crate) fn descend(n: KdNode, node: u32, origin: Vec3, dir: Vec3, inv: Vec3, t0: f32, t1: f32) -> Descent {
+    let ax = n.axis();
+    let split = n.split();
+    let o = axis(origin, ax);
+    let d = axis(dir, ax);
+    let below_first = (o < split) | ((o == split) & (d <= 0.0));
+    let (first, second) = if below_first { (node + 1, n.above_child()) } else { (n.above_child(), node + 1) };
+    let mut step = Descent { next: first, t1, push: false, far: StackEntry { node: second, t_min: t0, t_max: t1 } };
+    if d == 0.0 {
+        // Parallel to the plane: stay on the origin's side, or visit both when in it.
+        step.push = o == split;
+    } else {
+        let t_split = (split - o) * axis(inv, ax);
+        // A split beyond the interval (or behind the origin) leaves only the near child.
+        if (t_split <= t1 * (1.0 + T_SLACK)) & (t_split > 0.0) {
+            if t_split < t0 * (1.0 - T_SLACK) {
+                step.next = second;
+            } else {
+                step.push = true;
+                step.far.t_min = if t_split > t0 { t_split } else { t0 };
+                step.t1 = if t_split < t1 { t_split } else { t1 };
+            }
+        }
+    }
+    step
+}
+
 /// The closest hit with t in (0, t_max).
 #[inline]
 pub fn intersect(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32) -> Hit {
@@ -159,36 +200,15 @@ pub(crate) fn traverse(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32, a
         nodes += 1;
         let n = scene.nodes[node as usize];
         if !n.is_leaf() {
-            let ax = n.axis();
-            let split = n.split();
-            let o = axis(origin, ax);
-            let d = axis(dir, ax);
-            let below_first = (o < split) | ((o == split) & (d <= 0.0));
-            let (first, second) = if below_first { (node + 1, n.above_child()) } else { (n.above_child(), node + 1) };
-            if d == 0.0 {
-                // Parallel to the plane: stay on the origin's side, or visit both when in it.
-                if (o == split) & (sp < STACK_SIZE) {
-                    stack[sp] = StackEntry { node: second, t_min: t0, t_max: t1 };
-                    sp += 1;
-                }
-                node = first;
-                continue;
+            let step = descend(n, node, origin, dir, inv, t0, t1);
+            // The builder bounds depth by KD_MAX_DEPTH, so the stack cannot overflow on a
+            // validated tree; the guard only keeps a corrupt tree from writing out of bounds.
+            if step.push & (sp < STACK_SIZE) {
+                stack[sp] = step.far;
+                sp += 1;
             }
-            let t_split = (split - o) * axis(inv, ax);
-            if (t_split > t1 * (1.0 + T_SLACK)) | (t_split <= 0.0) {
-                node = first;
-            } else if t_split < t0 * (1.0 - T_SLACK) {
-                node = second;
-            } else {
-                // The builder bounds depth by KD_MAX_DEPTH, so the stack cannot overflow on a
-                // validated tree; the guard only keeps a corrupt tree from writing out of bounds.
-                if sp < STACK_SIZE {
-                    stack[sp] = StackEntry { node: second, t_min: if t_split > t0 { t_split } else { t0 }, t_max: t1 };
-                    sp += 1;
-                }
-                node = first;
-                t1 = if t_split < t1 { t_split } else { t1 };
-            }
+            node = step.next;
+            t1 = step.t1;
             continue;
         }
         let start = n.first_index();

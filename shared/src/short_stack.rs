@@ -16,11 +16,10 @@
 //!
 //! A small stack is what makes a k-d traversal fit in a GPU thread's registers.
 use crate::glam::Vec3;
-use crate::kdtree::{clip_to_bounds, flush_denormals, safe_reciprocal, Hit, StackEntry};
+use crate::kdtree::{clip_to_bounds, descend, flush_denormals, safe_reciprocal, Hit, StackEntry};
 use crate::numerics::{is_finite3, T_SLACK};
 use crate::scene::SceneView;
 use crate::triangle::RayShear;
-use crate::vecmath::axis;
 
 /// The stack depth the renderer uses on both devices.
 pub const SHORT_STACK: usize = 4;
@@ -75,39 +74,16 @@ fn traverse<const S: usize>(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f
         nodes += 1;
         let n = scene.nodes[node as usize];
         if !n.is_leaf() {
-            let ax = n.axis();
-            let split = n.split();
-            let o = axis(origin, ax);
-            let d = axis(dir, ax);
-            let below_first = (o < split) | ((o == split) & (d <= 0.0));
-            let (first, second) = if below_first { (node + 1, n.above_child()) } else { (n.above_child(), node + 1) };
-            let mut push = false;
-            let mut push_t0 = t0;
-            let push_t1 = t1;
-            if d == 0.0 {
-                // Parallel to the plane: stay on the origin's side, or visit both when in it.
-                push = o == split;
-                node = first;
-            } else {
-                let t_split = (split - o) * axis(inv, ax);
-                if (t_split > t1 * (1.0 + T_SLACK)) | (t_split <= 0.0) {
-                    node = first;
-                } else if t_split < t0 * (1.0 - T_SLACK) {
-                    node = second;
-                } else {
-                    push = true;
-                    push_t0 = if t_split > t0 { t_split } else { t0 };
-                    node = first;
-                    t1 = if t_split < t1 { t_split } else { t1 };
-                }
-            }
-            if push {
+            let step = descend(n, node, origin, dir, inv, t0, t1);
+            node = step.next;
+            t1 = step.t1;
+            if step.push {
                 if count == S {
                     // The ring is full: the slot at `top` holds the oldest entry, dropped now.
                     let old = stack[top].t_min;
                     drop_min = if old < drop_min { old } else { drop_min };
                 }
-                stack[top] = StackEntry { node: second, t_min: push_t0, t_max: push_t1 };
+                stack[top] = step.far;
                 top = if top + 1 == S { 0 } else { top + 1 };
                 if count == S {
                     dropped = true;

@@ -91,6 +91,7 @@ fn bad_input_exits_2_with_the_file_and_line() {
     expect_input_error(&["render", bad_index.to_str().unwrap(), "--out", out], "index.obj");
     let cornell = repo("scenes/cornell-box.obj");
     expect_input_error(&["render", &cornell, "--out", out, "--spp", "0"], "spp");
+    expect_input_error(&["verify", &cornell, "--time-limit", "1", "--spp", "1", "--width", "4", "--height", "4"], "--time-limit does not apply");
     expect_input_error(&["render", &cornell, "--out", out, "--width", "0"], "resolution");
     expect_input_error(&["render", &cornell, "--out", out, "--eye", "0,0,0", "--target", "0,0,0"], "eye and target");
     expect_input_error(&["render", &cornell, "--out", tmp("x.bmp").to_str().unwrap(), "--spp", "1", "--width", "4", "--height", "4"], "x.bmp");

@@ -365,7 +365,17 @@ fn render(r: RenderArgs) -> Result<ExitCode> {
 fn verify(v: VerifyArgs) -> Result<ExitCode> {
     let loaded = load(&v.scene)?;
     let c = &loaded.compiled;
-    let s = settings(&v.image, &loaded)?;
+    let mut s = settings(&v.image, &loaded)?;
+    if s.time_limit_s.take().is_some() {
+        // Both devices must render the same samples to be compared: a budget would stop them
+        // at different spp.
+        if v.image.time_limit.is_some() {
+            anyhow::bail!("verify renders the same samples on both devices: --time-limit does not apply (use --spp)");
+        }
+        if v.image.spp.is_none() && loaded.settings.spp.is_none() {
+            s.spp = kdtrace::scene_settings::DEFAULT_SPP;
+        }
+    }
     let (cpu_img, cpu_name, cpu_s) = run_device(Device::Cpu, c, &s, &v.image)?;
     let (gpu_img, gpu_name, gpu_s) = run_device(Device::Gpu, c, &s, &v.image)?;
     let a = verify::compare(&cpu_img, &gpu_img);

@@ -7,6 +7,7 @@ use crate::render::{Compiled, Dispatch, Progress, RenderSettings, Rendered};
 use anyhow::{anyhow, bail, Context, Result};
 use shared::glam::Vec4;
 use shared::layout::{RayQuery, RayResult, RenderParams};
+use std::sync::OnceLock;
 use wgpu::util::DeviceExt;
 
 static KERNEL_SPV: &[u8] = include_bytes!(env!("kernel.spv"));
@@ -41,9 +42,13 @@ const CPU_ADAPTER_PERSISTENT_ROUNDS: u32 = 4;
 pub struct Gpu {
     device: wgpu::Device,
     queue: wgpu::Queue,
-    render_pipeline: wgpu::ComputePipeline,
-    persistent_pipeline: wgpu::ComputePipeline,
-    cast_pipeline: wgpu::ComputePipeline,
+    module: wgpu::ShaderModule,
+    layout: wgpu::PipelineLayout,
+    // Each entry point is compiled when first used: a driver compiles the whole integrator per
+    // pipeline, and a render needs one of the three.
+    render_pipeline: OnceLock<wgpu::ComputePipeline>,
+    persistent_pipeline: OnceLock<wgpu::ComputePipeline>,
+    cast_pipeline: OnceLock<wgpu::ComputePipeline>,
     bind_layout: wgpu::BindGroupLayout,
     pub adapter: wgpu::AdapterInfo,
 }
@@ -135,23 +140,48 @@ impl Gpu {
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some("kernel"), source: wgpu::util::make_spirv(KERNEL_SPV) });
         let bind_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("scene"), entries: &bind_group_layout_entries() });
         let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label: Some("scene"), bind_group_layouts: &[Some(&bind_layout)], immediate_size: 0 });
-        let pipeline = |entry: &str| {
-            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(entry),
-                layout: Some(&layout),
-                module: &module,
-                entry_point: Some(entry),
-                compilation_options: Default::default(),
-                cache: None,
-            })
-        };
-        let render_pipeline = pipeline(RENDER_ENTRY);
-        let persistent_pipeline = pipeline(PERSISTENT_ENTRY);
-        let cast_pipeline = pipeline(CAST_ENTRY);
         if let Some(e) = pollster::block_on(scope.pop()) {
             bail!("adapter {:?} rejected the kernel: {e}", info.name);
         }
-        Ok(Self { device, queue, render_pipeline, persistent_pipeline, cast_pipeline, bind_layout, adapter: info })
+        Ok(Self {
+            device,
+            queue,
+            module,
+            layout,
+            render_pipeline: OnceLock::new(),
+            persistent_pipeline: OnceLock::new(),
+            cast_pipeline: OnceLock::new(),
+            bind_layout,
+            adapter: info,
+        })
+    }
+
+    /// Compiles the render pipeline for `dispatch` now, so that it is not timed as rendering.
+    pub fn prepare(&self, dispatch: Dispatch) -> Result<&wgpu::ComputePipeline> {
+        match dispatch {
+            Dispatch::Plain => self.pipeline(&self.render_pipeline, RENDER_ENTRY),
+            Dispatch::Persistent => self.pipeline(&self.persistent_pipeline, PERSISTENT_ENTRY),
+        }
+    }
+
+    /// The pipeline of kernel entry point `entry`, compiled on first use.
+    fn pipeline<'a>(&self, cell: &'a OnceLock<wgpu::ComputePipeline>, entry: &str) -> Result<&'a wgpu::ComputePipeline> {
+        if let Some(p) = cell.get() {
+            return Ok(p);
+        }
+        let scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let pipeline = self.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(entry),
+            layout: Some(&self.layout),
+            module: &self.module,
+            entry_point: Some(entry),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            bail!("adapter {:?} rejected kernel entry point {entry}: {e}", self.adapter.name);
+        }
+        Ok(cell.get_or_init(|| pipeline))
     }
 
     /// Whether the adapter runs on the CPU (lavapipe, WARP): its limits and speeds differ.
@@ -243,6 +273,7 @@ impl Gpu {
             (Dispatch::Plain, true) => (CPU_ADAPTER_SAMPLES_PER_PASS, 0, 0),
             (Dispatch::Plain, false) => (s.spp, 0, 0),
         };
+        let pipeline = self.prepare(s.dispatch)?;
         let per_pass = ((PATHS_PER_PASS / pixels.max(1)) as u32).clamp(1, s.spp.min(max_per_pass));
         let total = pixels * s.spp as u64;
         let clock = std::time::Instant::now();
@@ -253,10 +284,10 @@ impl Gpu {
             params.persistent_rounds = rounds;
             self.queue.write_buffer(&scene.params, 0, bytemuck::bytes_of(&params));
             match s.dispatch {
-                Dispatch::Plain => self.dispatch(&self.render_pipeline, &group, (s.width.div_ceil(GROUP), s.height.div_ceil(GROUP)))?,
+                Dispatch::Plain => self.dispatch(pipeline, &group, (s.width.div_ceil(GROUP), s.height.div_ceil(GROUP)))?,
                 Dispatch::Persistent => {
                     self.queue.write_buffer(&work, 0, bytemuck::bytes_of(&[0u32; 4]));
-                    self.dispatch(&self.persistent_pipeline, &group, (persistent_groups, 1))?
+                    self.dispatch(pipeline, &group, (persistent_groups, 1))?
                 }
             }
             start += count;
@@ -296,10 +327,11 @@ impl Gpu {
         if groups > MAX_GROUPS_X as usize {
             bail!("{} rays in one batch: at most {} are supported", rays.len(), MAX_GROUPS_X * CAST_GROUP);
         }
-        // Finish the uploads first so the timing covers the dispatch alone.
+        let pipeline = self.pipeline(&self.cast_pipeline, CAST_ENTRY)?;
+        // Finish the uploads (and compile) first so the timing covers the dispatch alone.
         self.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| anyhow!("GPU upload failed: {e}"))?;
         let t = std::time::Instant::now();
-        self.dispatch(&self.cast_pipeline, &group, (groups as u32, 1))?;
+        self.dispatch(pipeline, &group, (groups as u32, 1))?;
         let secs = t.elapsed().as_secs_f64();
         Ok((self.read_back(&results, result_bytes)?, secs))
     }

@@ -301,6 +301,7 @@ fn run_device(device: Device, c: &Compiled, s: &RenderSettings, a: &ImageArgs) -
         }
         Device::Gpu => {
             let g = gpu::Gpu::open(a.adapter.as_deref())?;
+            g.prepare(s.dispatch)?;
             let t = Instant::now();
             let r = g.render(c, s, &report)?;
             (r, g.adapter.name.clone(), t.elapsed().as_secs_f64())

@@ -234,20 +234,26 @@ pub fn pixel_test(reference: &LinearImage, stats: &PixelStats, alpha: f64) -> Re
             }
         }
     }
+    Ok(summarize(&ps, untested, alpha, reference.width))
+}
+
+/// The family-wise verdict over per-channel p-values `(p, pixel, channel)`: each tested at
+/// Šidák's level for family-wise `alpha`.
+fn summarize(ps: &[(f64, usize, usize)], untested: u64, alpha: f64, width: u32) -> PixelTest {
     let tests = ps.len() as u64;
     let per_test_alpha = if tests > 0 { sidak_alpha(alpha, tests) } else { alpha };
     let rejected = ps.iter().filter(|(p, _, _)| *p < per_test_alpha).count() as u64;
     let worst = ps.iter().min_by(|a, b| a.0.total_cmp(&b.0)).copied();
-    Ok(PixelTest {
+    PixelTest {
         tests,
         untested,
         alpha,
         per_test_alpha,
         rejected,
         min_p: worst.map_or(1.0, |w| w.0),
-        worst: worst.map(|(_, i, k)| (i as u32 % reference.width, i as u32 / reference.width, k)),
+        worst: worst.map(|(_, i, k)| (i as u32 % width, i as u32 / width, k)),
         pass: rejected == 0,
-    })
+    }
 }
 
 /// Two-sided p-value of "both estimates have the same true mean" (Welch's t-test): estimates
@@ -298,20 +304,7 @@ pub fn two_image_test(a: &PixelStats, b: &PixelStats, alpha: f64) -> Result<Pixe
             }
         }
     }
-    let tests = ps.len() as u64;
-    let per_test_alpha = if tests > 0 { sidak_alpha(alpha, tests) } else { alpha };
-    let rejected = ps.iter().filter(|(p, _, _)| *p < per_test_alpha).count() as u64;
-    let worst = ps.iter().min_by(|x, y| x.0.total_cmp(&y.0)).copied();
-    Ok(PixelTest {
-        tests,
-        untested,
-        alpha,
-        per_test_alpha,
-        rejected,
-        min_p: worst.map_or(1.0, |w| w.0),
-        worst: worst.map(|(_, i, k)| (i as u32 % width, i as u32 / width, k)),
-        pass: rejected == 0,
-    })
+    Ok(summarize(&ps, untested, alpha, width))
 }
 
 #[cfg(test)]

@@ -118,6 +118,51 @@ pub fn clip_to_bounds(lo: Vec3, hi: Vec3, origin: Vec3, dir: Vec3, inv: Vec3, t_
     Some((t0, t1))
 }
 
+/// What every traversal of a ray starts from: the direction with denormals flushed, its
+/// per-axis reciprocal, and the interval in which it crosses the scene box.
+#[derive(Clone, Copy)]
+pub(crate) struct RayStart {
+    pub dir: Vec3,
+    pub inv: Vec3,
+    pub t_enter: f32,
+    pub t_exit: f32,
+}
+
+/// `None` for a ray that cannot hit anything: non-finite origin or direction, zero direction, an
+/// empty tree, or a ray that misses the scene box within (0, t_max).
+#[inline]
+pub(crate) fn ray_start(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32) -> Option<RayStart> {
+    let dir = flush_denormals(dir);
+    let zero_dir = (dir.x == 0.0) & (dir.y == 0.0) & (dir.z == 0.0);
+    if !is_finite3(origin) | !is_finite3(dir) | zero_dir | scene.nodes.is_empty() {
+        return None;
+    }
+    let inv = safe_reciprocal(dir);
+    let (t_enter, t_exit) = clip_to_bounds(scene.bounds_min, scene.bounds_max, origin, dir, inv, 0.0, t_max)?;
+    Some(RayStart { dir, inv, t_enter, t_exit })
+}
+
+/// Tests the triangles of leaf `n` against the ray, narrowing `best`; counts the tests. Returns
+/// whether an any-hit query (`any_hit`) is answered. Leaf intervals do not clip the test: a hit
+/// anywhere in (0, best.t) counts, which is what makes the result equal brute force.
+#[inline]
+pub(crate) fn test_leaf(scene: &SceneView, shear: &RayShear, n: KdNode, best: &mut Hit, tests: &mut u32, any_hit: bool) -> bool {
+    let start = n.first_index();
+    let count = n.count();
+    let mut i = 0;
+    let mut done = false;
+    while (i < count) & !done {
+        let id = scene.indices[(start + i) as usize];
+        *tests += 1;
+        if let Some(h) = shear.intersect(&scene.triangles[id as usize], 0.0, best.t) {
+            *best = Hit { t: h.t, triangle: id, u: h.u, v: h.v, w: h.w, nodes: 0, tests: 0 };
+            done = any_hit;
+        }
+        i += 1;
+    }
+    done
+}
+
 /// The step at one interior node: the child to visit now, the end of the ray's interval in it,
 /// and the far child to visit later over its own interval, if the ray reaches it (Wald's thesis
 /// §7.2; a ray lying in the plane visits both children over the same interval).
@@ -179,17 +224,10 @@ pub fn occluded_hit(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32) -> H
 }
 
 pub(crate) fn traverse(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32, any_hit: bool) -> Hit {
-    let dir = flush_denormals(dir);
     let mut best = Hit::miss(t_max);
-    let zero_dir = (dir.x == 0.0) & (dir.y == 0.0) & (dir.z == 0.0);
-    if !is_finite3(origin) | !is_finite3(dir) | zero_dir | (scene.nodes.is_empty()) {
-        return best;
-    }
-    let inv = safe_reciprocal(dir);
-    let (mut t0, mut t1) = match clip_to_bounds(scene.bounds_min, scene.bounds_max, origin, dir, inv, 0.0, t_max) {
-        Some(range) => range,
-        None => return best,
-    };
+    let Some(ray) = ray_start(scene, origin, dir, t_max) else { return best };
+    let (dir, inv) = (ray.dir, ray.inv);
+    let (mut t0, mut t1) = (ray.t_enter, ray.t_exit);
     let shear = RayShear::new(origin, dir);
     let mut stack = [StackEntry { node: 0, t_min: 0.0, t_max: 0.0 }; STACK_SIZE];
     let mut sp = 0usize;
@@ -211,23 +249,10 @@ pub(crate) fn traverse(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32, a
             t1 = step.t1;
             continue;
         }
-        let start = n.first_index();
-        let count = n.count();
-        let mut i = 0;
-        while i < count {
-            let id = scene.indices[(start + i) as usize];
-            tests += 1;
-            if let Some(h) = shear.intersect(&scene.triangles[id as usize], 0.0, best.t) {
-                best = Hit { t: h.t, triangle: id, u: h.u, v: h.v, w: h.w, nodes, tests };
-                if any_hit {
-                    return best;
-                }
-            }
-            i += 1;
-        }
+        let answered = test_leaf(scene, &shear, n, &mut best, &mut tests, any_hit);
         // Pop the nearest node that may still hold a closer hit.
         let mut found = false;
-        while (sp > 0) & !found {
+        while (sp > 0) & !found & !answered {
             sp -= 1;
             let e = stack[sp];
             if e.t_min * (1.0 - T_SLACK) <= best.t {

@@ -7,10 +7,10 @@
 //! ray, and rays/s can be measured for the primary, ambient-occlusion and diffuse-bounce rays of
 //! Aila & Laine, "Understanding the Efficiency of Ray Traversal on GPUs" (HPG 2009).
 use crate::glam::Vec3;
-use crate::kdtree::{intersect, occluded_hit, Hit};
+use crate::kdtree::{self, Hit};
 use crate::layout::{RayQuery, RayResult, RAY_ANY_HIT, RAY_SHORT_STACK, TRAVERSAL_SHORT_STACK};
 use crate::scene::SceneView;
-use crate::short_stack::{intersect_short, occluded_short, SHORT_STACK};
+use crate::short_stack::{self, SHORT_STACK};
 use crate::vecmath::xyz;
 
 /// A hit with the number of restarts the short stack needed (0 for the full stack).
@@ -20,32 +20,33 @@ pub struct Traced {
     pub restarts: u32,
 }
 
+/// The closest hit (or, with `any_hit`, any hit) with t in (0, t_max) by the chosen traversal.
+#[inline]
+pub fn query(scene: &SceneView, traversal: u32, origin: Vec3, dir: Vec3, t_max: f32, any_hit: bool) -> Traced {
+    if traversal == TRAVERSAL_SHORT_STACK {
+        let s = short_stack::traverse::<SHORT_STACK>(scene, origin, dir, t_max, any_hit);
+        Traced { hit: s.hit, restarts: s.restarts }
+    } else {
+        Traced { hit: kdtree::traverse(scene, origin, dir, t_max, any_hit), restarts: 0 }
+    }
+}
+
 /// The closest hit with t in (0, t_max) by the chosen traversal.
 #[inline]
 pub fn closest(scene: &SceneView, traversal: u32, origin: Vec3, dir: Vec3, t_max: f32) -> Traced {
-    if traversal == TRAVERSAL_SHORT_STACK {
-        let s = intersect_short::<SHORT_STACK>(scene, origin, dir, t_max);
-        Traced { hit: s.hit, restarts: s.restarts }
-    } else {
-        Traced { hit: intersect(scene, origin, dir, t_max), restarts: 0 }
-    }
+    query(scene, traversal, origin, dir, t_max, false)
 }
 
 /// Any hit with t in (0, t_max) by the chosen traversal.
 #[inline]
 pub fn any(scene: &SceneView, traversal: u32, origin: Vec3, dir: Vec3, t_max: f32) -> Traced {
-    if traversal == TRAVERSAL_SHORT_STACK {
-        let s = occluded_short::<SHORT_STACK>(scene, origin, dir, t_max);
-        Traced { hit: s.hit, restarts: s.restarts }
-    } else {
-        Traced { hit: occluded_hit(scene, origin, dir, t_max), restarts: 0 }
-    }
+    query(scene, traversal, origin, dir, t_max, true)
 }
 
 #[inline]
 pub fn cast_ray(scene: &SceneView, q: &RayQuery) -> RayResult {
     let (o, d) = (xyz(q.origin), xyz(q.dir));
     let traversal = if (q.flags & RAY_SHORT_STACK) != 0 { TRAVERSAL_SHORT_STACK } else { 0 };
-    let r = if (q.flags & RAY_ANY_HIT) != 0 { any(scene, traversal, o, d, q.t_max) } else { closest(scene, traversal, o, d, q.t_max) };
+    let r = query(scene, traversal, o, d, q.t_max, (q.flags & RAY_ANY_HIT) != 0);
     RayResult { t: r.hit.t, triangle: r.hit.triangle, nodes: r.hit.nodes, tests: r.hit.tests, restarts: r.restarts, _pad: [0; 3] }
 }

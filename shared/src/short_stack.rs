@@ -16,8 +16,8 @@
 //!
 //! A small stack is what makes a k-d traversal fit in a GPU thread's registers.
 use crate::glam::Vec3;
-use crate::kdtree::{clip_to_bounds, descend, flush_denormals, safe_reciprocal, Hit, StackEntry};
-use crate::numerics::{is_finite3, T_SLACK};
+use crate::kdtree::{descend, ray_start, test_leaf, Hit, StackEntry};
+use crate::numerics::T_SLACK;
 use crate::scene::SceneView;
 use crate::triangle::RayShear;
 
@@ -43,19 +43,14 @@ pub struct ShortHit {
     pub restarts: u32,
 }
 
-fn traverse<const S: usize>(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32, any_hit: bool) -> ShortHit {
-    let dir = flush_denormals(dir);
+pub(crate) fn traverse<const S: usize>(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32, any_hit: bool) -> ShortHit {
     let mut best = Hit::miss(t_max);
-    let zero_dir = (dir.x == 0.0) & (dir.y == 0.0) & (dir.z == 0.0);
     let mut restarts = 0u32;
-    if !is_finite3(origin) | !is_finite3(dir) | zero_dir | scene.nodes.is_empty() | (S == 0) {
-        return ShortHit { hit: best, restarts };
-    }
-    let inv = safe_reciprocal(dir);
-    let (t_enter, t_exit) = match clip_to_bounds(scene.bounds_min, scene.bounds_max, origin, dir, inv, 0.0, t_max) {
-        Some(range) => range,
-        None => return ShortHit { hit: best, restarts },
+    let ray = match ray_start(scene, origin, dir, t_max) {
+        Some(ray) if S > 0 => ray,
+        _ => return ShortHit { hit: best, restarts },
     };
+    let (dir, inv, t_enter, t_exit) = (ray.dir, ray.inv, ray.t_enter, ray.t_exit);
     let shear = RayShear::new(origin, dir);
     let mut stack = [StackEntry { node: 0, t_min: 0.0, t_max: 0.0 }; S];
     // `top` is the next free slot of the ring; `count` entries below it are live.
@@ -93,18 +88,7 @@ fn traverse<const S: usize>(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f
             }
             continue;
         }
-        let start = n.first_index();
-        let c = n.count();
-        let mut i = 0;
-        while (i < c) & !done {
-            let id = scene.indices[(start + i) as usize];
-            tests += 1;
-            if let Some(h) = shear.intersect(&scene.triangles[id as usize], 0.0, best.t) {
-                best = Hit { t: h.t, triangle: id, u: h.u, v: h.v, w: h.w, nodes, tests };
-                done = any_hit;
-            }
-            i += 1;
-        }
+        done = test_leaf(scene, &shear, n, &mut best, &mut tests, any_hit);
         // Pop the nearest entry that may still hold a closer hit. Entries pushed for a ray lying
         // in a split plane start where the traversal already is, so the stack is not sorted by
         // distance: every entry is checked, none is assumed culled by the one above it.

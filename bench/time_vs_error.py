@@ -45,6 +45,8 @@ SCENES = {
 
 LADDERS = {
     "kdtrace-cpu": [4, 16, 64, 256, 1024],
+    # The same CPU path with independent uniforms instead of Sobol points (`--sampler`).
+    "kdtrace-cpu-independent": [4, 16, 64, 256, 1024],
     "kdtrace-gpu": [4, 16, 64],
     "cycles": [4, 16, 64, 256],
     "mitsuba": [4, 16, 64, 256, 1024],
@@ -73,7 +75,8 @@ def render(renderer, scene, spp, seed, out, a):
     obj = SCENES[scene]["obj"]
     if renderer.startswith("kdtrace"):
         dev = renderer.split("-")[1]
-        j, wall = run([KDTRACE, "render", obj, "--out", out, "--device", dev, "--json"] + common)
+        sampler = ["--sampler", "independent"] if renderer.endswith("-independent") else []
+        j, wall = run([KDTRACE, "render", obj, "--out", out, "--device", dev, "--json"] + sampler + common)
         return j["build_s"] + j["render_s"], wall, j
     script = os.path.join(ROOT, "bench", "peers", f"render_{renderer}.py")
     j, wall = run([PY, script, obj, "--out", out, "--json"] + common)

@@ -17,6 +17,7 @@ use rand_pcg::Pcg64;
 use shared::glam::{Vec3, Vec4};
 use shared::layout::{Light, Triangle};
 use shared::material::{eval, sample};
+use shared::rng::{Sampler, SAMPLER_INDEPENDENT, SAMPLER_SOBOL};
 use shared::sampling::{cosine_hemisphere, select_light, uniform_triangle};
 use shared::vecmath::luminance;
 use statrs::distribution::{ChiSquared, ContinuousCDF};
@@ -25,7 +26,7 @@ use std::f64::consts::PI;
 const ALPHA: f64 = 0.01;
 /// χ² tests of correct samplers in this file (the deliberately wrong pdfs are not counted: they
 /// must fail and are not part of the family whose false-alarm rate is controlled).
-const TESTS: u64 = 7;
+const TESTS: u64 = 11;
 const MIN_EXPECTED: f64 = 5.0;
 const SAMPLES: usize = 1_000_000;
 
@@ -319,6 +320,37 @@ fn light_selection_follows_power_pmf_of_a_synthetic_table() {
     }
 }
 
+/// χ² of 2D points over a 32×32 grid on [0,1]² against `density` (integrated per bin).
+fn unit_square_chi2(points: &[(f32, f32)], density: &dyn Fn(f64, f64) -> f64) -> Chi2 {
+    let n = 32;
+    let mut obs = vec![0f64; n * n];
+    for &(x, y) in points {
+        assert!((0.0..1.0).contains(&x) && (0.0..1.0).contains(&y), "({x}, {y}) outside [0,1)²");
+        obs[((y * n as f32) as usize).min(n - 1) * n + ((x * n as f32) as usize).min(n - 1)] += 1.0;
+    }
+    chi2(&obs, &integrate_bins(n, n, points.len(), density))
+}
+
+/// The samplers' points are uniform on [0,1)² in dimension pairs (0, 1) and (1, 2) of a set.
+/// Within one pixel Sobol points are stratified, not independent, so each point here comes from
+/// a different pixel (independent scrambles), at a spread of sample indices and sets: the χ²
+/// assumption of independent draws holds and the test checks each point's distribution.
+#[test]
+fn sampler_points_are_uniform_across_pixels() {
+    for kind in [SAMPLER_SOBOL, SAMPLER_INDEPENDENT] {
+        let draws: Vec<[f32; 3]> = (0..SAMPLES as u32).map(|p| Sampler::at(kind, p, p % 1021, p % 13, 4)).collect();
+        let uniform = |_: f64, _: f64| 1.0;
+        // Wrong: a 10% slope along x, still normalised.
+        let sloped = |x: f64, _: f64| 0.95 + 0.1 * x;
+        for (pair, (a, b)) in [(0usize, 1usize), (1, 2)].into_iter().enumerate() {
+            let pts: Vec<(f32, f32)> = draws.iter().map(|v| (v[a], v[b])).collect();
+            let good = unit_square_chi2(&pts, &uniform);
+            let wrong = unit_square_chi2(&pts, &sloped);
+            assert_pass_and_wrong_rejected(&format!("sampler {kind}, dimensions {pair}"), good, wrong);
+        }
+    }
+}
+
 /// The χ² machinery itself: pooling keeps every cell's expected count ≥ 5, a bin with samples
 /// but no expected mass fails, and a pdf with the wrong total fails.
 #[test]
@@ -333,7 +365,7 @@ fn chi2_machinery_pools_small_bins_and_catches_support_and_normalisation_errors(
     let c = chi2(&[100.0, 100.0], &[90.0, 90.0]);
     assert!(c.rejected() && c.failure.as_deref().unwrap().contains("integrates"), "{c:?}");
     // Two equally likely bins, 20000 samples: the binomial σ of one count is 70.7. A 3σ excess
-    // (p = 0.0027) passes the Šidák level 0.01/7 ≈ 0.00144, a 4σ one (p = 6.3e-5) does not.
+    // (p = 0.0027) passes the Šidák level 0.01/11 ≈ 0.00091, a 4σ one (p = 6.3e-5) does not.
     assert!(!chi2(&[10_212.0, 9_788.0], &[10_000.0, 10_000.0]).rejected());
     assert!(chi2(&[10_283.0, 9_717.0], &[10_000.0, 10_000.0]).rejected());
 }

@@ -5,7 +5,8 @@ use kdtrace::kdbuild::BuildSettings;
 use kdtrace::scene::Scene;
 use kdtrace::scene_settings::SceneSettings;
 use kdtrace::{load, Loaded};
-use shared::glam::Vec3;
+use kdtrace::local_frame::point_to_world;
+use shared::glam::{Vec3, Vec4};
 use shared::triangle::geometric_normal;
 use shared::vecmath::xyz;
 use std::path::{Path, PathBuf};
@@ -113,6 +114,11 @@ fn transforms_apply_scale_then_rotate_then_translate() {
     std::fs::write(&scene, "[[mesh]]\nfile = \"tri.obj\"\nscale = [2, 1, 1]\nrotate = [0, 0, 90]\ntranslate = [0, 0, 5]\n").unwrap();
     let l = loaded(&scene);
     let t = l.compiled.scene.triangles[0];
+    // The loaded scene is stored relative to its origin (`local_frame`): here z = 5 on every
+    // vertex, so z moves to 0 and the origin holds the 5.
+    let origin = l.compiled.origin;
+    assert_eq!(origin, Vec3::new(0.0, 0.0, 5.0));
+    let xyz = |v: Vec4| point_to_world(v.truncate(), origin);
     // (1,0,0) → ×2 → (2,0,0) → 90° about z → (0,2,0) → +5 z → (0,2,5); (0,1,0) → (−1,0,5).
     let close = |a: Vec3, b: Vec3| (a - b).length() < 1e-5;
     assert!(close(xyz(t.v0), Vec3::new(0.0, 0.0, 5.0)), "{t:?}");
@@ -120,8 +126,9 @@ fn transforms_apply_scale_then_rotate_then_translate() {
     assert!(close(xyz(t.v2), Vec3::new(-1.0, 0.0, 5.0)), "{t:?}");
     // Uniform scale, and rotation about x before y: (0,1,0) → x 90° → (0,0,1) → y 90° → (1,0,0).
     std::fs::write(&scene, "[[mesh]]\nfile = \"tri.obj\"\nscale = 3\nrotate = [90, 90, 0]\n").unwrap();
-    let t = loaded(&scene).compiled.scene.triangles[0];
-    assert!(close(xyz(t.v2), Vec3::new(3.0, 0.0, 0.0)), "{t:?}");
+    let l = loaded(&scene);
+    let t = l.compiled.scene.triangles[0];
+    assert!(close(point_to_world(t.v2.truncate(), l.compiled.origin), Vec3::new(3.0, 0.0, 0.0)), "{t:?}");
 }
 
 #[test]

@@ -62,6 +62,9 @@ struct Header {
     scene_bounds: [[f32; 3]; 2],
     tree_bounds: [[f32; 3]; 2],
     tree_depth: u32,
+    /// World position of the scene's origin (`local_frame`); absent in files from before it.
+    #[serde(default)]
+    origin: [f32; 3],
     counts: Counts,
 }
 
@@ -90,6 +93,7 @@ pub fn encode(c: &Compiled, build_settings: &BuildSettings, settings: &SceneSett
         scene_bounds: [s.bounds_min.to_array(), s.bounds_max.to_array()],
         tree_bounds: [t.bounds_min.to_array(), t.bounds_max.to_array()],
         tree_depth: t.depth,
+        origin: c.origin.to_array(),
         counts: Counts {
             triangles: s.triangles.len() as u64,
             materials: s.materials.len() as u64,
@@ -380,7 +384,7 @@ impl Sections {
             bounds_max: Vec3::from(hi),
             dropped_degenerate: h.dropped_degenerate,
         };
-        Compiled::new(scene, tree)
+        Compiled { origin: Vec3::from(h.origin), ..Compiled::new(scene, tree) }
     }
 }
 
@@ -401,6 +405,9 @@ fn validate(h: &Header, s: &Sections) -> Result<()> {
         Ok((lo, hi))
     };
     bounds(h.scene_bounds, "scene")?;
+    if !Vec3::from(h.origin).is_finite() {
+        bail!("scene origin {:?} is not finite", h.origin);
+    }
     let (tree_lo, tree_hi) = bounds(h.tree_bounds, "tree")?;
     let (tree, rest) = rayon::join(|| check_tree(&s.nodes, &s.indices, s.triangles.len(), tree_lo, tree_hi, h.tree_depth), || check_scene(h, s));
     rest.and(tree)

@@ -8,6 +8,7 @@ pub mod gpu;
 pub mod image_io;
 pub mod kdbuild;
 pub mod kdc;
+pub mod local_frame;
 pub mod metrics;
 pub mod obj;
 pub mod procedural;
@@ -84,12 +85,15 @@ pub fn load(path: &Path, settings: kdbuild::BuildSettings) -> Result<Loaded> {
     }
     let load_s = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();
-    let compiled = compile(scene, settings);
+    let (scene, origin) = local_frame::to_local(scene);
+    let mut compiled = compile(scene, settings);
+    compiled.origin = origin;
     let build_s = t1.elapsed().as_secs_f64();
     Ok(Loaded { compiled, settings: scene_settings, warnings, kind, load_s, build_s })
 }
 
-/// Builds a scene's k-d tree.
+/// Builds a scene's k-d tree, in the scene's own coordinates (`load` first moves a scene far from
+/// the origin next to it: `local_frame`).
 pub fn compile(scene: scene::Scene, settings: kdbuild::BuildSettings) -> render::Compiled {
     let tree = kdbuild::build(&scene.triangles, scene.bounds_min, scene.bounds_max, settings);
     render::Compiled::new(scene, tree)

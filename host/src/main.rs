@@ -2,7 +2,7 @@
 use anyhow::Result;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
-use kdtrace::render::{Aov, Compiled, Dispatch, RenderSettings, Rendered, Traversal};
+use kdtrace::render::{Aov, Compiled, Dispatch, RenderSettings, Rendered, SamplerKind, Traversal};
 use kdtrace::scene_settings::SceneSettings;
 use kdtrace::{cpu, gpu, image_io, kdbuild, kdc, scene_file, verify, Loaded, SceneKind};
 use serde_json::json;
@@ -176,6 +176,10 @@ struct ImageArgs {
     /// [scene file, else 0]
     #[arg(long)]
     seed: Option<u32>,
+    /// Sample placement: shuffled Owen-scrambled Sobol points, or independent uniforms [scene
+    /// file, else sobol].
+    #[arg(long, value_enum)]
+    sampler: Option<SamplerKind>,
     /// Camera position x,y,z (default: frame the scene's box from +Z).
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
     eye: Option<Vec3>,
@@ -249,6 +253,7 @@ fn flag_settings(a: &ImageArgs) -> SceneSettings {
         spp: a.spp,
         bounces: a.bounces,
         seed: a.seed,
+        sampler: a.sampler,
         time_limit_s: a.time_limit,
         eye: a.eye.map(|v| v.to_array()),
         target: a.target.map(|v| v.to_array()),
@@ -261,7 +266,7 @@ fn flag_settings(a: &ImageArgs) -> SceneSettings {
 /// Flags over the scene's own settings over the defaults.
 fn settings(a: &ImageArgs, loaded: &Loaded) -> Result<RenderSettings> {
     let c = &loaded.compiled;
-    let mut s = loaded.settings.overridden_by(&flag_settings(a)).resolve(c.tree.bounds_min, c.tree.bounds_max)?;
+    let mut s = loaded.settings.overridden_by(&flag_settings(a)).resolve(c.world_bounds().0, c.world_bounds().1)?;
     s.traversal = a.traversal;
     s.dispatch = a.dispatch;
     s.aov = a.aov;
@@ -340,7 +345,7 @@ fn render(r: RenderArgs) -> Result<ExitCode> {
             "dropped_degenerate": c.scene.dropped_degenerate,
             "nodes": c.tree.nodes.len(), "tree_depth": c.tree.depth,
             "spp": img.spp, "spp_max": s.spp, "time_limit_s": s.time_limit_s, "variance": r.variance,
-            "width": s.width, "height": s.height, "bounces": s.max_bounces, "seed": s.seed,
+            "width": s.width, "height": s.height, "bounces": s.max_bounces, "seed": s.seed, "sampler": s.sampler,
             "load_s": loaded.load_s, "build_s": loaded.build_s, "render_s": render_s,
             "samples_per_s": samples / render_s, "zeroed_samples": img.zeroed_samples(),
             "traversal": img.traversal, "dispatch": s.dispatch, "aov": s.aov,
@@ -487,7 +492,7 @@ fn export(e: ExportArgs) -> Result<ExitCode> {
     // Loading checks every mesh and resolves the camera framing that the file may leave open.
     let loaded = load(&e.scene)?;
     let c = &loaded.compiled;
-    let resolved = loaded.settings.resolve(c.tree.bounds_min, c.tree.bounds_max)?;
+    let resolved = loaded.settings.resolve(c.world_bounds().0, c.world_bounds().1)?;
     let mut file = scene_file::with_settings(file, &SceneSettings::pinned(&resolved, loaded.settings.time_limit_s))?;
     scene_file::rebase_meshes(&mut file, &e.scene, &e.out)?;
     let comment = format!("kdtrace scene file, written by `kdtrace export` from {}.\nSchema: README.md, \"Scene files\".", e.scene.display());

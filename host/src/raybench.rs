@@ -18,7 +18,7 @@ use shared::layout::{RayQuery, RayResult, NO_HIT, RAY_ANY_HIT, RAY_SHORT_STACK};
 use shared::material::sample as sample_bsdf;
 use shared::numerics::offset_ray_origin;
 use shared::raycast::cast_ray;
-use shared::rng::Sampler;
+use shared::rng::{Sampler, SAMPLER_INDEPENDENT};
 use shared::triangle::{geometric_normal, hit_point, RayShear};
 use shared::vecmath::{dot, normalize};
 use std::time::Instant;
@@ -39,7 +39,7 @@ pub const AO_LENGTH: f32 = 0.1;
 pub fn make_rays(c: &Compiled, s: &RenderSettings, kind: RayKind, traversal: Traversal) -> Result<Vec<RayQuery>> {
     let p = c.params(s, 0, 1)?;
     let flags = if traversal == Traversal::Short { RAY_SHORT_STACK } else { 0 };
-    let eye = s.camera.eye;
+    let eye = crate::local_frame::point_to_local(s.camera.eye, c.origin);
     let camera: Vec<RayQuery> = (0..s.height)
         .flat_map(|y| (0..s.width).map(move |x| (x, y)))
         .map(|(x, y)| query(eye, primary_direction(&p, x as f32 + 0.5, y as f32 + 0.5), f32::MAX, flags))
@@ -65,8 +65,8 @@ pub fn make_rays(c: &Compiled, s: &RenderSettings, kind: RayKind, traversal: Tra
             let surface = hit_point(tri, &h);
             let n = normalize(geometric_normal(tri));
             let n = if dot(n, d) < 0.0 { n } else { -n };
-            let mut rng = Sampler::new(i as u32, 0, 0x5eed);
-            let wi = sample_bsdf(&c.scene.materials[c.scene.info[hit.triangle as usize].material as usize], n, rng.next_1d(), rng.next_1d()).wi;
+            let (u1, u2) = Sampler::new(SAMPLER_INDEPENDENT, i as u32, 0, 0x5eed).next_2d();
+            let wi = sample_bsdf(&c.scene.materials[c.scene.info[hit.triangle as usize].material as usize], n, u1, u2).wi;
             let o = offset_ray_origin(surface.p, surface.error, n);
             Some(match kind {
                 RayKind::Ao => query(o, wi, AO_LENGTH * diagonal, flags | RAY_ANY_HIT),

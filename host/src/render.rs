@@ -2,10 +2,12 @@
 //! the accumulated result.
 use crate::camera::Camera;
 use crate::kdbuild::KdTree;
+use crate::local_frame::{point_to_local, point_to_world};
 use crate::scene::Scene;
 use anyhow::{bail, Result};
 use shared::glam::{Vec3, Vec4};
 use shared::layout::{Light, RenderParams, AOV_COST, AOV_RADIANCE, TRAVERSAL_FULL_STACK, TRAVERSAL_SHORT_STACK};
+use shared::rng::{SAMPLER_INDEPENDENT, SAMPLER_SOBOL};
 use shared::scene::SceneView;
 
 /// Which k-d traversal renders (both return identical hits; they differ in speed).
@@ -30,6 +32,27 @@ impl Traversal {
             Traversal::Auto if cpu => Traversal::Full,
             Traversal::Auto => Traversal::Short,
             t => t,
+        }
+    }
+}
+
+/// How a pixel's samples are placed (the same numbers on the CPU and the GPU).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SamplerKind {
+    /// Shuffled Owen-scrambled Sobol points, stratified per pixel and per dimension set (Burley
+    /// 2020; `shared::sobol`): the same mean, lower error at equal samples.
+    #[default]
+    Sobol,
+    /// Independent uniforms: each a hash of (pixel, sample, set, seed).
+    Independent,
+}
+
+impl SamplerKind {
+    pub fn tag(self) -> u32 {
+        match self {
+            SamplerKind::Sobol => SAMPLER_SOBOL,
+            SamplerKind::Independent => SAMPLER_INDEPENDENT,
         }
     }
 }
@@ -64,6 +87,7 @@ pub struct RenderSettings {
     /// Indirect bounces; 0 = direct light only.
     pub max_bounces: u32,
     pub seed: u32,
+    pub sampler: SamplerKind,
     /// Bounce from which Russian roulette may end a path (Mitsuba's `rr_depth`).
     pub rr_start: u32,
     pub environment: Vec3,
@@ -89,6 +113,7 @@ impl RenderSettings {
             spp: 64,
             max_bounces: 6,
             seed: 0,
+            sampler: SamplerKind::default(),
             rr_start: 5,
             environment: Vec3::ZERO,
             camera,
@@ -123,6 +148,9 @@ pub struct Compiled {
     pub tree: KdTree,
     /// The light table padded to at least one entry (GPU buffers cannot be empty).
     pub lights: Vec<Light>,
+    /// World position of the scene's coordinate origin (`local_frame`): the scene and its tree
+    /// are stored relative to it, cameras are given in world space.
+    pub origin: Vec3,
 }
 
 impl Compiled {
@@ -131,13 +159,18 @@ impl Compiled {
         if lights.is_empty() {
             lights.push(Light::default());
         }
-        Self { scene, tree, lights }
+        Self { scene, tree, lights, origin: Vec3::ZERO }
+    }
+
+    /// The scene's bounds in world space (what a default camera frames).
+    pub fn world_bounds(&self) -> (Vec3, Vec3) {
+        (point_to_world(self.tree.bounds_min, self.origin), point_to_world(self.tree.bounds_max, self.origin))
     }
 
     pub fn params(&self, s: &RenderSettings, sample_start: u32, sample_count: u32) -> Result<RenderParams> {
         let (right, up, forward) = s.camera.basis(s.aspect())?;
         Ok(RenderParams {
-            eye: s.camera.eye.extend(0.0),
+            eye: point_to_local(s.camera.eye, self.origin).extend(0.0),
             right: right.extend(0.0),
             up: up.extend(0.0),
             forward: forward.extend(0.0),
@@ -164,7 +197,7 @@ impl Compiled {
                 Aov::Cost => AOV_COST,
             },
             persistent_rounds: u32::MAX,
-            _pad0: 0,
+            sampler: s.sampler.tag(),
             _pad1: 0,
             _pad2: 0,
         })

@@ -9,7 +9,7 @@
 //! and those checks carry the span of the offending value as well.
 use crate::files::Files;
 use crate::obj::{self, DEFAULT_ALBEDO, MAX_COORDINATE};
-use crate::render::{MAX_SIDE, MAX_SPP};
+use crate::render::{SamplerKind, MAX_SIDE, MAX_SPP};
 use crate::scene::{diffuse, Scene};
 use crate::scene_settings::SceneSettings;
 use crate::transform::Placement;
@@ -70,7 +70,10 @@ pub struct RenderSection {
     pub bounces: Option<Bounces>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub seed: Option<u32>,
-    /// Seconds; stored and validated, honoured once `--time-limit` lands.
+    /// "sobol" (default) or "independent".
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sampler: Option<SamplerKind>,
+    /// Seconds: the render stops between passes of whole samples once they are spent.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub time_limit: Option<Seconds>,
 }
@@ -397,6 +400,7 @@ pub fn settings_of(file: &SceneFile) -> SceneSettings {
         spp: r.spp.map(|s| s.0),
         bounces: r.bounces.map(|b| b.0),
         seed: r.seed,
+        sampler: r.sampler,
         time_limit_s: r.time_limit.map(|t| t.0),
         eye: c.eye.map(|p| f32x3(p.0)),
         target: c.target.map(|p| f32x3(p.0)),
@@ -561,6 +565,7 @@ pub fn with_settings(mut file: SceneFile, s: &SceneSettings) -> Result<SceneFile
         spp: s.spp.map(|v| Spp::try_from(v as i64)).transpose().map_err(|e| anyhow!(e))?,
         bounces: s.bounces.map(|v| Bounces::try_from(v as i64)).transpose().map_err(|e| anyhow!(e))?,
         seed: s.seed,
+        sampler: s.sampler,
         time_limit: s.time_limit_s.map(Seconds::try_from).transpose().map_err(|e| anyhow!(e))?,
     };
     file.environment = s.environment.map(|v| Color::try_from([tidy(v[0]), tidy(v[1]), tidy(v[2])])).transpose().map_err(|e| anyhow!(e))?;

@@ -6,7 +6,7 @@
 //! The same struct comes from a TOML scene file, is stored (as JSON) in a compiled `.kdc` scene,
 //! and is built from the CLI flags, so the three agree by construction.
 use crate::camera::Camera;
-use crate::render::{Aov, Dispatch, RenderSettings, Traversal, MAX_SPP};
+use crate::render::{Aov, Dispatch, RenderSettings, SamplerKind, Traversal, MAX_SPP};
 use anyhow::{bail, Result};
 use serde::{Deserialize, Serialize};
 use shared::glam::Vec3;
@@ -28,6 +28,8 @@ pub struct SceneSettings {
     /// Indirect bounces; 0 = direct light only.
     pub bounces: Option<u32>,
     pub seed: Option<u32>,
+    /// Sample placement (default Sobol).
+    pub sampler: Option<SamplerKind>,
     /// Wall-clock budget in seconds: the render stops between passes of whole samples once it is
     /// spent. Without an spp it renders as many samples as fit (up to `MAX_SPP`).
     pub time_limit_s: Option<f64>,
@@ -49,6 +51,7 @@ impl SceneSettings {
             spp: flags.spp.or(self.spp),
             bounces: flags.bounces.or(self.bounces),
             seed: flags.seed.or(self.seed),
+            sampler: flags.sampler.or(self.sampler),
             time_limit_s: flags.time_limit_s.or(self.time_limit_s),
             eye: flags.eye.or(self.eye),
             target: flags.target.or(self.target),
@@ -92,6 +95,7 @@ impl SceneSettings {
             spp: self.spp.unwrap_or(if self.time_limit_s.is_some() { MAX_SPP } else { DEFAULT_SPP }),
             max_bounces: self.bounces.unwrap_or(DEFAULT_BOUNCES),
             seed: self.seed.unwrap_or(DEFAULT_SEED),
+            sampler: self.sampler.unwrap_or_default(),
             rr_start: RR_START,
             environment,
             camera,
@@ -113,6 +117,7 @@ impl SceneSettings {
             spp: Some(s.spp),
             bounces: Some(s.max_bounces),
             seed: Some(s.seed),
+            sampler: Some(s.sampler),
             time_limit_s,
             eye: Some(s.camera.eye.to_array()),
             target: Some(s.camera.target.to_array()),

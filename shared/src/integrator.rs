@@ -51,9 +51,8 @@ struct Path {
 /// traversal code was miscompiled for whole subgroups on lavapipe (Mesa 22.3, LLVM 15), which
 /// lost every lane's sample when one lane left the loop that way.
 pub fn trace_sample(scene: &SceneView, p: &RenderParams, px: u32, py: u32, sample: u32) -> PathSample {
-    let mut rng = Sampler::new(py * p.width + px, sample, p.seed);
-    let jx = rng.next_1d();
-    let jy = rng.next_1d();
+    let mut rng = Sampler::new(p.sampler, py * p.width + px, sample, p.seed);
+    let (jx, jy) = rng.next_2d();
     let mut path = Path {
         origin: xyz(p.eye),
         dir: primary_direction(p, px as f32 + jx, py as f32 + jy),
@@ -118,9 +117,8 @@ fn shade_vertex(scene: &SceneView, p: &RenderParams, path: &mut Path, rng: &mut 
     let spawn = offset_ray_origin(pos, surface.error, ns);
 
     if scene.light_count > 0 {
-        let u_select = rng.next_1d();
-        let u1 = rng.next_1d();
-        let u2 = rng.next_1d();
+        // The point on the light takes the set's best-spread pair, the choice of light the third.
+        let [u1, u2, u_select] = rng.next_3d();
         let light = scene.lights[select_light(scene.lights, scene.light_count, u_select) as usize];
         let ltri = &scene.triangles[light.triangle as usize];
         let (b0, b1, b2) = uniform_triangle(u1, u2);
@@ -143,7 +141,8 @@ fn shade_vertex(scene: &SceneView, p: &RenderParams, path: &mut Path, rng: &mut 
         }
     }
 
-    let bs = sample_bsdf(mat, ns, rng.next_1d(), rng.next_1d());
+    let [ub1, ub2, u_roulette] = rng.next_3d();
+    let bs = sample_bsdf(mat, ns, ub1, ub2);
     if bs.pdf <= 0.0 {
         return false;
     }
@@ -152,7 +151,7 @@ fn shade_vertex(scene: &SceneView, p: &RenderParams, path: &mut Path, rng: &mut 
     path.bounce += 1;
     if path.bounce >= p.rr_start {
         let survive = max_component(path.beta).min(RR_MAX_SURVIVAL);
-        if rng.next_1d() >= survive {
+        if u_roulette >= survive {
             return false;
         }
         path.beta = path.beta / survive;

@@ -151,8 +151,9 @@ pub struct RenderParams {
     pub aov: u32,
     /// Batches one workgroup of the persistent kernel takes at most in one dispatch.
     pub persistent_rounds: u32,
+    /// `rng::SAMPLER_SOBOL` or `rng::SAMPLER_INDEPENDENT`.
+    pub sampler: u32,
     // Scalars, not an array: a uniform block aligns arrays to 16 bytes.
-    pub _pad0: u32,
     pub _pad1: u32,
     pub _pad2: u32,
 }

@@ -23,6 +23,7 @@ pub mod rng;
 pub mod sampling;
 pub mod scene;
 pub mod short_stack;
+pub mod sobol;
 pub mod triangle;
 pub mod trig;
 pub mod vecmath;

@@ -1,8 +1,10 @@
-//! Counter-based random numbers keyed by (pixel, sample, dimension, seed).
+//! Counter-based sample values keyed by (pixel, sample, set, seed).
 //!
-//! Each number is a hash of its key (Jarzynski & Olano, "Hash Functions for GPU Rendering",
-//! JCGT 2020, `pcg4d`), so there is no state to carry between samples or threads: the CPU and
-//! the GPU compute exactly the same value for the same key, in any order, on any thread.
+//! Two samplers share one interface: independent uniforms, each a hash of its key (Jarzynski &
+//! Olano, "Hash Functions for GPU Rendering", JCGT 2020, `pcg4d`), and shuffled Owen-scrambled
+//! Sobol points (`sobol`, Burley 2020) whose per-pixel seeds come from the same hash. Nothing is
+//! carried between samples or threads: the CPU and the GPU compute exactly the same value for
+//! the same key, in any order, on any thread.
 
 /// The `pcg4d` hash: 4 words in, 4 well-mixed words out, wrapping integer ops only.
 #[inline]
@@ -32,37 +34,73 @@ pub fn u32_to_unit_f32(x: u32) -> f32 {
     (x >> 8) as f32 * (1.0 / 16_777_216.0)
 }
 
-/// Draws the dimensions of one sample of one pixel in order.
+/// `RenderParams::sampler`: independent uniforms, each a hash of (pixel, sample, set, seed).
+pub const SAMPLER_INDEPENDENT: u32 = 0;
+/// `RenderParams::sampler`: shuffled Owen-scrambled Sobol points per set (`sobol`).
+pub const SAMPLER_SOBOL: u32 = 1;
+
+/// Keeps the Sobol seeds apart from the independent sampler's keys.
+const SOBOL_KEY: u32 = 0x50b0_1b00;
+
+/// Draws the uniforms of one sample of one pixel, one *set* of up to three dimensions at a time.
+///
+/// A path asks for its sets in a fixed order (the film position, then per vertex the light
+/// sample and the BSDF sample with its roulette number), so set `k` means the same thing in
+/// every sample: the Sobol sampler stratifies each set across a pixel's samples, and sets are
+/// decorrelated by their own shuffles. Both samplers are pure functions of the key, so the CPU
+/// and the GPU draw the same numbers in any order.
 #[derive(Clone, Copy)]
 pub struct Sampler {
+    kind: u32,
     pixel: u32,
     sample: u32,
     seed: u32,
-    dimension: u32,
+    set: u32,
+    /// `sample.reverse_bits()`, shared by all of the sample's Sobol sets.
+    reversed_sample: u32,
 }
 
 impl Sampler {
     #[inline]
-    pub fn new(pixel: u32, sample: u32, seed: u32) -> Self {
-        Self { pixel, sample, seed, dimension: 0 }
+    pub fn new(kind: u32, pixel: u32, sample: u32, seed: u32) -> Self {
+        Self { kind, pixel, sample, seed, set: 0, reversed_sample: sample.reverse_bits() }
     }
 
-    /// The value at an explicit key; `next_1d` walks the dimensions.
+    /// The three uniforms of an explicit set; `next_3d` walks the sets.
     #[inline]
-    pub fn at(pixel: u32, sample: u32, dimension: u32, seed: u32) -> f32 {
-        u32_to_unit_f32(pcg4d(pixel, sample, dimension, seed)[0])
+    pub fn at(kind: u32, pixel: u32, sample: u32, set: u32, seed: u32) -> [f32; 3] {
+        Self::point(kind, pixel, sample, sample.reverse_bits(), set, seed)
     }
 
     #[inline]
-    pub fn next_1d(&mut self) -> f32 {
-        let v = Self::at(self.pixel, self.sample, self.dimension, self.seed);
-        self.dimension += 1;
+    fn point(kind: u32, pixel: u32, sample: u32, reversed_sample: u32, set: u32, seed: u32) -> [f32; 3] {
+        let bits = if kind == SAMPLER_SOBOL {
+            crate::sobol::scrambled_sobol3(reversed_sample, pcg4d(pixel, set, seed, SOBOL_KEY))
+        } else {
+            let h = pcg4d(pixel, sample, set, seed);
+            [h[0], h[1], h[2]]
+        };
+        [u32_to_unit_f32(bits[0]), u32_to_unit_f32(bits[1]), u32_to_unit_f32(bits[2])]
+    }
+
+    #[inline]
+    pub fn next_3d(&mut self) -> [f32; 3] {
+        let v = Self::point(self.kind, self.pixel, self.sample, self.reversed_sample, self.set, self.seed);
+        self.set += 1;
         v
     }
 
+    /// The first two dimensions of the next set (the most evenly spread pair under Sobol).
     #[inline]
-    pub fn dimension(&self) -> u32 {
-        self.dimension
+    pub fn next_2d(&mut self) -> (f32, f32) {
+        let v = self.next_3d();
+        (v[0], v[1])
+    }
+
+    /// Sets drawn so far.
+    #[inline]
+    pub fn set(&self) -> u32 {
+        self.set
     }
 }
 
@@ -78,37 +116,80 @@ mod tests {
 
     #[test]
     fn keys_are_independent_and_reproducible() {
-        let mut s = Sampler::new(7, 3, 42);
-        let a = s.next_1d();
-        let b = s.next_1d();
-        assert_ne!(a, b);
-        assert_eq!(Sampler::at(7, 3, 0, 42), a);
-        assert_eq!(Sampler::at(7, 3, 1, 42), b);
-        assert_ne!(Sampler::at(7, 3, 0, 43), a);
-        assert_ne!(Sampler::at(8, 3, 0, 42), a);
-        assert_ne!(Sampler::at(7, 4, 0, 42), a);
+        for kind in [SAMPLER_INDEPENDENT, SAMPLER_SOBOL] {
+            let mut s = Sampler::new(kind, 7, 3, 42);
+            let a = s.next_3d();
+            let b = s.next_3d();
+            assert_ne!(a, b);
+            assert_eq!(s.set(), 2);
+            assert_eq!(Sampler::at(kind, 7, 3, 0, 42), a);
+            assert_eq!(Sampler::at(kind, 7, 3, 1, 42), b);
+            assert_ne!(Sampler::at(kind, 7, 3, 0, 43), a);
+            assert_ne!(Sampler::at(kind, 8, 3, 0, 42), a);
+            assert_ne!(Sampler::at(kind, 7, 4, 0, 42), a);
+        }
     }
 
     #[test]
     fn mean_and_variance_of_uniforms() {
-        // 2^16 draws along each key axis: the mean of U(0,1) is 1/2 ± 0.0011 (σ/√n ≈ 0.289/256)
-        // and the variance 1/12; 5σ bands keep false alarms below 1e-6.
-        for axis in 0..3 {
-            let n = 1u32 << 16;
-            let (mut s1, mut s2) = (0.0f64, 0.0f64);
-            for i in 0..n {
-                let v = match axis {
-                    0 => Sampler::at(i, 0, 0, 1),
-                    1 => Sampler::at(0, i, 0, 1),
-                    _ => Sampler::at(0, 0, i, 1),
-                } as f64;
-                s1 += v;
-                s2 += v * v;
+        // 2^16 draws along each key axis and in each of the three dimensions: the mean of U(0,1)
+        // is 1/2 ± 0.0011 (σ/√n ≈ 0.289/256) and the variance 1/12; 5σ bands keep false alarms
+        // below 1e-6. Along the sample axis the Sobol points are stratified and land far closer.
+        for kind in [SAMPLER_INDEPENDENT, SAMPLER_SOBOL] {
+            for axis in 0..3 {
+                let n = 1u32 << 16;
+                let mut s1 = [0.0f64; 3];
+                let mut s2 = [0.0f64; 3];
+                for i in 0..n {
+                    let v = match axis {
+                        0 => Sampler::at(kind, i, 0, 0, 1),
+                        1 => Sampler::at(kind, 0, i, 0, 1),
+                        _ => Sampler::at(kind, 0, 0, i, 1),
+                    };
+                    for d in 0..3 {
+                        s1[d] += v[d] as f64;
+                        s2[d] += (v[d] as f64) * (v[d] as f64);
+                    }
+                }
+                for d in 0..3 {
+                    let mean = s1[d] / n as f64;
+                    let var = s2[d] / n as f64 - mean * mean;
+                    assert!((mean - 0.5).abs() < 5.0 * 0.2887 / 256.0, "kind {kind} axis {axis} dim {d} mean {mean}");
+                    assert!((var - 1.0 / 12.0).abs() < 0.002, "kind {kind} axis {axis} dim {d} var {var}");
+                }
             }
-            let mean = s1 / n as f64;
-            let var = s2 / n as f64 - mean * mean;
-            assert!((mean - 0.5).abs() < 5.0 * 0.2887 / 256.0, "axis {axis} mean {mean}");
-            assert!((var - 1.0 / 12.0).abs() < 0.002, "axis {axis} var {var}");
         }
+    }
+
+    #[test]
+    fn sobol_sets_are_stratified_per_pixel_and_decorrelated_between_sets() {
+        // 64 samples of one pixel: in every set, each of the 8×8 cells of dimensions (0, 1)
+        // holds exactly one point (a (0,6,2)-net has one per 8×8 cell).
+        for pixel in [0u32, 1, 12345] {
+            for set in 0..6 {
+                let mut cells = [0u32; 64];
+                for s in 0..64 {
+                    let v = Sampler::at(SAMPLER_SOBOL, pixel, s, set, 9);
+                    cells[((v[0] * 8.0) as usize) * 8 + (v[1] * 8.0) as usize] += 1;
+                }
+                assert!(cells.iter().all(|&c| c == 1), "pixel {pixel} set {set}: {cells:?}");
+            }
+        }
+        // Different sets of one pixel are not the same sequence: the correlation of dimension 0
+        // between two sets over 4096 samples is near 0 (|r| < 5/√4096 ≈ 0.08).
+        let n = 4096;
+        let (mut sa, mut sb, mut sab, mut saa, mut sbb) = (0.0f64, 0.0, 0.0, 0.0, 0.0);
+        for s in 0..n {
+            let a = Sampler::at(SAMPLER_SOBOL, 3, s, 1, 9)[0] as f64;
+            let b = Sampler::at(SAMPLER_SOBOL, 3, s, 2, 9)[0] as f64;
+            sa += a;
+            sb += b;
+            sab += a * b;
+            saa += a * a;
+            sbb += b * b;
+        }
+        let nf = n as f64;
+        let r = (sab / nf - sa / nf * sb / nf) / ((saa / nf - (sa / nf).powi(2)) * (sbb / nf - (sb / nf).powi(2))).sqrt();
+        assert!(r.abs() < 5.0 / nf.sqrt(), "sets correlated: r = {r}");
     }
 }

@@ -50,14 +50,17 @@ LADDERS = {
     "kdtrace-gpu": [4, 16, 64],
     "cycles": [4, 16, 64, 256],
     "mitsuba": [4, 16, 64, 256, 1024],
+    # Mitsuba with its low-discrepancy sampler (padded (0,2)-sequences) instead of its default.
+    "mitsuba-ldsampler": [4, 16, 64, 256, 1024],
 }
 
 
 def last_json(stdout):
     for line in reversed(stdout.strip().splitlines()):
+        # Drop what precedes the object (a log line's colour codes).
         line = line.strip()
-        if line.startswith("{"):
-            return json.loads(line)
+        if "{" in line and line.endswith("}"):
+            return json.loads(line[line.index("{"):])
     raise RuntimeError("no JSON line in output:\n" + stdout[-2000:])
 
 
@@ -78,9 +81,11 @@ def render(renderer, scene, spp, seed, out, a):
         sampler = ["--sampler", "independent"] if renderer.endswith("-independent") else []
         j, wall = run([KDTRACE, "render", obj, "--out", out, "--device", dev, "--json"] + sampler + common)
         return j["build_s"] + j["render_s"], wall, j
-    script = os.path.join(ROOT, "bench", "peers", f"render_{renderer}.py")
-    j, wall = run([PY, script, obj, "--out", out, "--json"] + common)
-    return j.get("load_s", 0.0) * (renderer == "mitsuba") + j["render_s"], wall, j
+    base, _, variant = renderer.partition("-")
+    script = os.path.join(ROOT, "bench", "peers", f"render_{base}.py")
+    extra = ["--sampler", variant] if variant else []
+    j, wall = run([PY, script, obj, "--out", out, "--json"] + extra + common)
+    return j.get("load_s", 0.0) * (base == "mitsuba") + j["render_s"], wall, j
 
 
 def compare(ref, test):

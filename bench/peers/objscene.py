@@ -20,8 +20,10 @@ def _vec3(s):
     return tuple(float(p) for p in parts)
 
 
-def parse_args(description):
+def parse_args(description, extra=None):
     p = argparse.ArgumentParser(description=description)
+    if extra:
+        extra(p)
     p.add_argument("scene", help="OBJ file (with its MTL beside it)")
     p.add_argument("--out", required=True, help="linear 32-bit float EXR to write")
     p.add_argument("--spp", type=int, default=64)

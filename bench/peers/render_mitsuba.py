@@ -4,7 +4,8 @@ Same triangles split by material (objscene.py), a two-sided `diffuse` BSDF with 
 diffuse reflects on both sides, Mitsuba's only on the front), an `area` emitter with radiance Ke
 (Mitsuba area lights emit from the front, the counter-clockwise side, as kdtrace does), face
 normals, black environment, `path` integrator with max_depth = bounces + 2 and Russian roulette
-from depth 5 (kdtrace's rr_start), box pixel filter, independent sampler, pinhole camera from
+from depth 5 (kdtrace's rr_start), box pixel filter, independent sampler (Mitsuba's default;
+`--sampler ldsampler` for its padded (0,2)-sequence sampler), pinhole camera from
 eye/target/up with the vertical field of view. Writes a linear float32 RGB EXR.
 
 Large sample counts are rendered in passes of at most 2^24 samples (Mitsuba's LLVM backend keeps
@@ -53,7 +54,8 @@ def scene_dict(args, tmp):
             "fov": args.fov,
             "fov_axis": "y",
             "to_world": mi.ScalarTransform4f().look_at(origin=args.eye, target=args.target, up=args.up),
-            "sampler": {"type": "independent", "sample_count": 1},
+            # render(spp=...) sets the count; 4 is one ldsampler accepts without a warning.
+            "sampler": {"type": args.sampler, "sample_count": 4},
             "film": {
                 "type": "hdrfilm",
                 "width": args.width,
@@ -80,13 +82,16 @@ def scene_dict(args, tmp):
 
 
 def main():
-    args = objscene.parse_args(__doc__.splitlines()[0])
+    args = objscene.parse_args(__doc__.splitlines()[0], lambda p: p.add_argument("--sampler", default="independent", help="Mitsuba sampler plugin"))
     mi.set_variant("llvm_ad_rgb")
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
         scene = mi.load_dict(scene_dict(args, tmp))
         load_s = time.perf_counter() - t0
         per_pass = max(1, min(args.spp, MAX_PASS_SAMPLES // (args.width * args.height)))
+        # A low-discrepancy sampler stratifies within one pass: keep passes power-of-two sized.
+        if args.sampler != "independent":
+            per_pass = 1 << (per_pass.bit_length() - 1)
         acc = np.zeros((args.height, args.width, 3), dtype=np.float64)
         done, passes = 0, 0
         t1 = time.perf_counter()
@@ -100,7 +105,7 @@ def main():
     out = (acc / args.spp).astype(np.float32)
     mi.util.write_bitmap(args.out, mi.Bitmap(out, pixel_format=mi.Bitmap.PixelFormat.RGB), write_async=False)
     line = {
-        "renderer": f"mitsuba {mi.__version__} llvm_ad_rgb", "scene": args.scene, "out": args.out,
+        "renderer": f"mitsuba {mi.__version__} llvm_ad_rgb", "sampler": args.sampler, "scene": args.scene, "out": args.out,
         "spp": args.spp, "width": args.width, "height": args.height, "bounces": args.bounces,
         "passes": passes, "load_s": load_s, "render_s": render_s, "threads": dr.thread_count(),
     }

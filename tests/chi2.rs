@@ -18,7 +18,7 @@ use shared::glam::{Vec3, Vec4};
 use shared::layout::{Light, Triangle};
 use shared::material::{eval, sample};
 use shared::rng::{Sampler, SAMPLER_INDEPENDENT, SAMPLER_SOBOL};
-use shared::sampling::{cosine_hemisphere, select_light, uniform_triangle};
+use shared::sampling::{cosine_hemisphere, remap_in_light, select_light, uniform_triangle};
 use shared::vecmath::luminance;
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 use std::f64::consts::PI;
@@ -26,7 +26,7 @@ use std::f64::consts::PI;
 const ALPHA: f64 = 0.01;
 /// χ² tests of correct samplers in this file (the deliberately wrong pdfs are not counted: they
 /// must fail and are not part of the family whose false-alarm rate is controlled).
-const TESTS: u64 = 11;
+const TESTS: u64 = 12;
 const MIN_EXPECTED: f64 = 5.0;
 const SAMPLES: usize = 1_000_000;
 
@@ -351,6 +351,30 @@ fn sampler_points_are_uniform_across_pixels() {
     }
 }
 
+/// A unit-square lamp made of two triangles, sampled the way the integrator samples lights: one
+/// uniform picks the triangle and, rescaled within the picked triangle's share, becomes the
+/// first coordinate of the point on it. The points must be uniform over the square.
+#[test]
+fn light_points_from_a_rescaled_selection_are_uniform_over_a_quad() {
+    let tris = [([0.0f32, 0.0], [1.0f32, 0.0], [1.0f32, 1.0]), ([0.0, 0.0], [1.0, 1.0], [0.0, 1.0])];
+    let lights = [Light { triangle: 0, pmf: 0.5, cdf: 0.5, area: 0.5 }, Light { triangle: 1, pmf: 0.5, cdf: 1.0, area: 0.5 }];
+    let mut rng = Pcg64::seed_from_u64(21);
+    let pts: Vec<(f32, f32)> = (0..SAMPLES)
+        .map(|_| {
+            let (u, u2): (f32, f32) = (rng.random(), rng.random());
+            let i = select_light(&lights, 2, u);
+            let (b0, b1, b2) = uniform_triangle(remap_in_light(&lights, i, u), u2);
+            let (a, b, c) = tris[i as usize];
+            let p = |k: usize| b0 * a[k] + b1 * b[k] + b2 * c[k];
+            (p(0).clamp(0.0, 0.999_999), p(1).clamp(0.0, 0.999_999))
+        })
+        .collect();
+    let good = unit_square_chi2(&pts, &|_, _| 1.0);
+    // Wrong: 10% more points on one triangle than the other.
+    let wrong = unit_square_chi2(&pts, &|x, y| if x > y { 1.05 } else { 0.95 });
+    assert_pass_and_wrong_rejected("lamp of two triangles", good, wrong);
+}
+
 /// The χ² machinery itself: pooling keeps every cell's expected count ≥ 5, a bin with samples
 /// but no expected mass fails, and a pdf with the wrong total fails.
 #[test]
@@ -365,7 +389,7 @@ fn chi2_machinery_pools_small_bins_and_catches_support_and_normalisation_errors(
     let c = chi2(&[100.0, 100.0], &[90.0, 90.0]);
     assert!(c.rejected() && c.failure.as_deref().unwrap().contains("integrates"), "{c:?}");
     // Two equally likely bins, 20000 samples: the binomial σ of one count is 70.7. A 3σ excess
-    // (p = 0.0027) passes the Šidák level 0.01/11 ≈ 0.00091, a 4σ one (p = 6.3e-5) does not.
+    // (p = 0.0027) passes the Šidák level 0.01/12 ≈ 0.00084, a 4σ one (p = 6.3e-5) does not.
     assert!(!chi2(&[10_212.0, 9_788.0], &[10_000.0, 10_000.0]).rejected());
     assert!(chi2(&[10_283.0, 9_717.0], &[10_000.0, 10_000.0]).rejected());
 }

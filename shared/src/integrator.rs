@@ -12,7 +12,7 @@ use crate::layout::{RenderParams, AOV_COST, NO_HIT, NO_LIGHT};
 use crate::material::{emitted, eval, sample as sample_bsdf};
 use crate::numerics::{offset_ray_origin, sanitize_radiance};
 use crate::rng::Sampler;
-use crate::sampling::{power_heuristic, select_light, uniform_triangle};
+use crate::sampling::{power_heuristic, remap_in_light, select_light, uniform_triangle};
 use crate::scene::SceneView;
 use crate::triangle::{geometric_normal, hit_point, interpolate, TriangleHit};
 use crate::vecmath::{dot, length_squared, max_component, normalize, xyz};
@@ -117,9 +117,13 @@ fn shade_vertex(scene: &SceneView, p: &RenderParams, path: &mut Path, rng: &mut 
     let spawn = offset_ray_origin(pos, surface.error, ns);
 
     if scene.light_count > 0 {
-        // The point on the light takes the set's best-spread pair, the choice of light the third.
-        let [u1, u2, u_select] = rng.next_3d();
-        let light = scene.lights[select_light(scene.lights, scene.light_count, u_select) as usize];
+        // The set's best-spread pair picks the light and the point on it: the picking dimension,
+        // rescaled within the picked light's interval, is the point's first coordinate, so the
+        // points stay stratified over a light made of several triangles (a quad lamp).
+        let (u_select, u2) = rng.next_2d();
+        let index = select_light(scene.lights, scene.light_count, u_select);
+        let light = scene.lights[index as usize];
+        let u1 = remap_in_light(scene.lights, index, u_select);
         let ltri = &scene.triangles[light.triangle as usize];
         let (b0, b1, b2) = uniform_triangle(u1, u2);
         let on_light = interpolate(ltri, b0, b1, b2);

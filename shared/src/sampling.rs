@@ -89,6 +89,29 @@ pub fn select_light(lights: &[Light], count: u32, u: f32) -> u32 {
     lo
 }
 
+/// `u` (which picked light `index` with `select_light`) rescaled to [0, 1) within that light's
+/// interval of the cdf: a fresh uniform for sampling a point on the light, still stratified
+/// together with the other dimensions of its set (pbrt-v4's `SampleDiscrete` remapping). The
+/// picked light's interval is at least `u`'s resolution wide, so the result keeps 24 − log2(1/pmf)
+/// bits: plenty for scenes whose lights do not each carry a vanishing share of the power.
+#[inline]
+pub fn remap_in_light(lights: &[Light], index: u32, u: f32) -> f32 {
+    let lo = if index == 0 { 0.0 } else { lights[index as usize - 1].cdf };
+    let hi = lights[index as usize].cdf;
+    let r = if hi > lo { (u - lo) / (hi - lo) } else { 0.0 };
+    // Rounding may land exactly on 1 (or a hair below 0); keep the result in [0, 1).
+    if r < 0.0 {
+        0.0
+    } else if r < ONE_MINUS_EPSILON {
+        r
+    } else {
+        ONE_MINUS_EPSILON
+    }
+}
+
+/// The largest f32 below 1.
+pub const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -133,6 +156,28 @@ mod tests {
         assert_eq!(select_light(&lights, 4, 0.5), 3, "zero-probability light 2 is never picked");
         assert_eq!(select_light(&lights, 4, 0.9999), 3);
         assert_eq!(select_light(&lights, 1, 0.7), 0);
+    }
+
+    #[test]
+    fn remapped_uniform_spans_the_picked_interval() {
+        let l = |pmf: f32, cdf: f32| Light { triangle: 0, pmf, cdf, area: 1.0 };
+        let lights = [l(0.25, 0.25), l(0.0, 0.25), l(0.75, 1.0)];
+        // The interval of light 2 is [0.25, 1): its ends map to 0 and just below 1, its middle
+        // to the middle, and the result is always in [0, 1).
+        assert_eq!(remap_in_light(&lights, 2, 0.25), 0.0);
+        assert!((remap_in_light(&lights, 2, 0.625) - 0.5).abs() < 1e-6);
+        assert!(remap_in_light(&lights, 2, ONE_MINUS_EPSILON) < 1.0);
+        assert!((remap_in_light(&lights, 0, 0.125) - 0.5).abs() < 1e-6);
+        // Monotone within an interval, so a stratified u stays stratified.
+        let mut last = -1.0;
+        for i in 0..1000 {
+            let u = 0.25 + 0.75 * i as f32 / 1000.0;
+            assert_eq!(select_light(&lights, 3, u), 2);
+            let r = remap_in_light(&lights, 2, u);
+            assert!(r >= last && (0.0..1.0).contains(&r), "u {u} -> {r}");
+            last = r;
+        }
+        assert_eq!(remap_in_light(&lights, 1, 0.25), 0.0, "an empty interval maps to 0");
     }
 
     #[test]

@@ -83,6 +83,33 @@ pub fn sobol3(index: u32) -> [u32; 3] {
     [x0, x1, x2]
 }
 
+/// Dimensions 0 and 1 of `sobol3_reversed`, for sets that need only two.
+#[inline]
+pub fn sobol2_reversed(reversed_index: u32) -> [u32; 2] {
+    let (mut x0, mut x1) = (0u32, 0u32);
+    let mut w0 = 1u32;
+    let mut w1 = 1u32;
+    let mut r = reversed_index;
+    while r != 0 {
+        if (r & 0x8000_0000) != 0 {
+            x0 ^= w0;
+            x1 ^= w1;
+        }
+        r <<= 1;
+        w0 <<= 1;
+        w1 ^= w1 << 1;
+    }
+    [x0, x1]
+}
+
+/// `scrambled_sobol3`'s first two coordinates at two thirds of the work.
+#[inline]
+pub fn scrambled_sobol2(reversed_index: u32, seeds: [u32; 4]) -> [u32; 2] {
+    let shuffled = laine_karras(reversed_index, seeds[0]) ^ laine_karras(0, seeds[0]);
+    let x = sobol2_reversed(shuffled);
+    [laine_karras(x[0], seeds[1]).reverse_bits(), laine_karras(x[1], seeds[2]).reverse_bits()]
+}
+
 /// `sobol3` in the bit-reversed domain: takes the reversed index and returns the reversed
 /// coordinates, with the direction numbers' recurrences mirrored (left shifts). The scrambles
 /// work on reversed values, so this saves a reversal per coordinate and one of the index.
@@ -163,6 +190,8 @@ mod tests {
             }
             let shuffled = sobol3(shuffle_index(i, seeds[0]));
             let fast = scrambled_sobol3(i.reverse_bits(), seeds);
+            let two = scrambled_sobol2(i.reverse_bits(), seeds);
+            assert_eq!([fast[0], fast[1]], two, "index {i}");
             for d in 0..3 {
                 assert_eq!(fast[d], nested_uniform_scramble(shuffled[d], seeds[d + 1]), "index {i} dimension {d}");
             }

@@ -116,6 +116,7 @@ def main():
     ap.add_argument("--size", type=int, default=256)
     ap.add_argument("--bounces", type=int, default=6)
     ap.add_argument("--ref-spp", type=int, default=4096, help="Mitsuba reference spp (two halves)")
+    ap.add_argument("--reuse-reference", action="store_true", help="keep reference halves already rendered in --out (same spp and size)")
     ap.add_argument("--scenes", default=",".join(SCENES))
     ap.add_argument("--renderers", default=",".join(LADDERS))
     ap.add_argument("--out", default=os.path.join(ROOT, "bench", "results"))
@@ -129,10 +130,11 @@ def main():
         halves = []
         t_ref = time.perf_counter()
         for h, seed in enumerate([7, 8]):
-            out = os.path.join(img, f"{scene}-ref-half{h}.exr")
-            render("mitsuba", scene, a.ref_spp // 2, seed, out, a)
+            out = os.path.join(img, f"{scene}-ref{a.ref_spp}-{a.size}-half{h}.exr")
+            if not (a.reuse_reference and os.path.exists(out)):
+                render("mitsuba", scene, a.ref_spp // 2, seed, out, a)
             halves.append(out)
-        ref = os.path.join(img, f"{scene}-ref.exr")
+        ref = os.path.join(img, f"{scene}-ref{a.ref_spp}-{a.size}.exr")
         run([PY, "-c", "import sys, numpy as np, mitsuba as mi; mi.set_variant('scalar_rgb');"
              "a, b = (np.asarray(mi.Bitmap(p), dtype=np.float64) for p in sys.argv[1:3]);"
              "mi.util.write_bitmap(sys.argv[3], mi.Bitmap(((a + b) / 2).astype(np.float32)), write_async=False); print('{}')",

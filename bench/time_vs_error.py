@@ -41,6 +41,18 @@ SCENES = {
         # argparse from reading -0.01 as an option).
         "camera": ["--eye=-0.01,0.795,3.817", "--target=-0.01,0.795,0.493", "--up=0,1,0", "--fov=39.3076"],
     },
+    # Composed by bench/peers/make_scenes.py into OUT/scenes at the start of a run.
+    "bunny-box": {
+        "generated": "bunny-box.obj",
+        "camera": ["--eye=0.278,0.273,0.8", "--target=0.278,0.273,0", "--up=0,1,0", "--fov=39.3076"],
+        "max_spp": 256,
+    },
+    "sponza-sky": {
+        "generated": "sponza-sky.obj",
+        "camera": ["--eye=-11,3,0", "--target=11,5,0", "--up=0,1,0", "--fov=55"],
+        # Long paths in a closed building: 10-12x the Cornell box's time per sample.
+        "max_spp": 64,
+    },
 }
 
 LADDERS = {
@@ -117,7 +129,7 @@ def main():
     ap.add_argument("--bounces", type=int, default=6)
     ap.add_argument("--ref-spp", type=int, default=4096, help="Mitsuba reference spp (two halves)")
     ap.add_argument("--reuse-reference", action="store_true", help="keep reference halves already rendered in --out (same spp and size)")
-    ap.add_argument("--scenes", default=",".join(SCENES))
+    ap.add_argument("--scenes", default="cornell-box,CornellBox-Sphere", help=f"comma-separated, of: {', '.join(SCENES)}")
     ap.add_argument("--renderers", default=",".join(LADDERS))
     ap.add_argument("--out", default=os.path.join(ROOT, "bench", "results"))
     a = ap.parse_args()
@@ -126,6 +138,11 @@ def main():
     os.makedirs(img, exist_ok=True)
     rows, refs = [], {}
     t_all = time.perf_counter()
+    generated = os.path.join(a.out, "scenes")
+    run([PY, os.path.join(ROOT, "bench", "peers", "make_scenes.py"), generated])
+    for spec in SCENES.values():
+        if "generated" in spec:
+            spec["obj"] = os.path.join(generated, spec["generated"])
     for scene in a.scenes.split(","):
         halves = []
         t_ref = time.perf_counter()
@@ -146,7 +163,7 @@ def main():
         refs[scene] = {"spp": a.ref_spp, "seconds": ref_s, "relmse_floor": half_diff["relmse"] / 4, "rmse_floor": half_diff["rmse"] / 2}
         print(f"{scene}: reference Mitsuba {a.ref_spp} spp in {ref_s:.1f} s; reference relMSE ~ {refs[scene]['relmse_floor']:.2e}", flush=True)
         for renderer in a.renderers.split(","):
-            for spp in LADDERS[renderer]:
+            for spp in [n for n in LADDERS[renderer] if n <= SCENES[scene].get("max_spp", n)]:
                 out = os.path.join(img, f"{scene}-{renderer}-{spp}.exr")
                 t, wall, j = render(renderer, scene, spp, 0, out, a)
                 e = compare(ref, out)

@@ -14,24 +14,19 @@ import json
 import os
 import sys
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import objscene  # noqa: E402
+
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
 def read_vertices_and_faces(path):
     verts, faces = [], []
-    with open(path, encoding="utf-8", errors="replace") as f:
-        for line in f:
-            t = line.split()
-            if not t:
-                continue
-            if t[0] == "v":
-                verts.append(tuple(float(x) for x in t[1:4]))
-            elif t[0] == "f":
-                idx = []
-                for tok in t[1:]:
-                    i = int(tok.split("/")[0])
-                    idx.append(i - 1 if i > 0 else len(verts) + i)
-                faces.append(idx)
+    for kind, value in objscene.records(path):
+        if kind == "v":
+            verts.append(value)
+        elif kind == "f":
+            faces.append(value)
     return verts, faces
 
 

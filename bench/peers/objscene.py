@@ -54,10 +54,10 @@ def _read_mtl(path):
     return mats
 
 
-def load(path):
-    """Returns {material name: {"Kd", "Ke", "vertices": [(x,y,z)], "triangles": [(i,j,k)]}}."""
-    verts, mats, parts = [], {}, {}
-    current = None
+def records(path):
+    """The OBJ's statements in order: ("v", (x, y, z)), ("f", [0-based vertex indices]),
+    ("mtllib", path), ("usemtl", name); everything else is skipped."""
+    count = 0
     base = os.path.dirname(os.path.abspath(path))
     with open(path, encoding="utf-8", errors="replace") as f:
         for line in f:
@@ -65,22 +65,37 @@ def load(path):
             if not t:
                 continue
             if t[0] == "v":
-                verts.append(tuple(float(x) for x in t[1:4]))
+                count += 1
+                yield "v", tuple(float(x) for x in t[1:4])
             elif t[0] == "mtllib":
-                mtl = os.path.join(base, " ".join(t[1:]))
-                if os.path.exists(mtl):
-                    mats.update(_read_mtl(mtl))
+                yield "mtllib", os.path.join(base, " ".join(t[1:]))
             elif t[0] == "usemtl":
-                current = " ".join(t[1:])
+                yield "usemtl", " ".join(t[1:])
             elif t[0] == "f":
                 idx = []
                 for tok in t[1:]:
                     i = int(tok.split("/")[0])
-                    idx.append(i - 1 if i > 0 else len(verts) + i)
-                name = current if current in mats else None
-                part = parts.setdefault(name, {"triangles": []})
-                for k in range(1, len(idx) - 1):
-                    part["triangles"].append((idx[0], idx[k], idx[k + 1]))
+                    idx.append(i - 1 if i > 0 else count + i)
+                yield "f", idx
+
+
+def load(path):
+    """Returns {material name: {"Kd", "Ke", "vertices": [(x,y,z)], "triangles": [(i,j,k)]}}."""
+    verts, mats, parts = [], {}, {}
+    current = None
+    for kind, value in records(path):
+        if kind == "v":
+            verts.append(value)
+        elif kind == "mtllib":
+            if os.path.exists(value):
+                mats.update(_read_mtl(value))
+        elif kind == "usemtl":
+            current = value
+        else:
+            name = current if current in mats else None
+            part = parts.setdefault(name, {"triangles": []})
+            for k in range(1, len(value) - 1):
+                part["triangles"].append((value[0], value[k], value[k + 1]))
     out = {}
     for name, part in parts.items():
         m = mats.get(name, {"Kd": DEFAULT_ALBEDO, "Ke": (0.0, 0.0, 0.0)})

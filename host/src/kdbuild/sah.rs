@@ -95,6 +95,41 @@ struct Node {
     budget: f64,
 }
 
+/// Buffers one thread reuses from node to node: the deep tail of the tree is millions of nodes
+/// of a few references each, where allocating and freeing a dozen lists per split would cost
+/// more than the split itself. Lists freed by a node go back to the pool and serve the next.
+#[derive(Default)]
+struct Scratch {
+    event_lists: Vec<Vec<Event>>,
+    triangle_lists: Vec<Vec<u32>>,
+    code: Vec<u32>,
+    fresh: [[Vec<Event>; 3]; 2],
+}
+
+impl Scratch {
+    fn events(&mut self) -> Vec<Event> {
+        self.event_lists.pop().unwrap_or_default()
+    }
+
+    fn triangles(&mut self) -> Vec<u32> {
+        self.triangle_lists.pop().unwrap_or_default()
+    }
+
+    fn recycle_events(&mut self, mut list: Vec<Event>) {
+        list.clear();
+        self.event_lists.push(list);
+    }
+
+    fn recycle(&mut self, node: Node) {
+        let Node { mut triangles, events, .. } = node;
+        triangles.clear();
+        self.triangle_lists.push(triangles);
+        for list in events {
+            self.recycle_events(list);
+        }
+    }
+}
+
 #[derive(Clone, Copy, Debug)]
 struct Plane {
     axis: usize,
@@ -115,6 +150,45 @@ struct Subtree {
     depth: u32,
 }
 
+/// The top of the tree as the parallel tasks built it: subtrees each laid out on its own, joined
+/// by the splits above them. Written out once at the end, into arrays of the final size, so no
+/// node is copied more than once whatever the number of parallel levels.
+enum Part {
+    Built(Subtree),
+    Split { axis: u32, pos: f32, children: Box<(Part, Part)> },
+}
+
+impl Part {
+    /// (nodes, indices) in all.
+    fn size(&self) -> (usize, usize) {
+        match self {
+            Part::Built(sub) => (sub.nodes.len(), sub.indices.len()),
+            Part::Split { children, .. } => {
+                let ((bn, bi), (an, ai)) = (children.0.size(), children.1.size());
+                (1 + bn + an, bi + ai)
+            }
+        }
+    }
+
+    fn write(self, out: &mut Subtree) {
+        match self {
+            Part::Built(sub) => out.append(sub),
+            Part::Split { axis, pos, children } => {
+                let (below, above) = *children;
+                let me = out.nodes.len();
+                out.nodes.push(KdNode::default());
+                below.write(out);
+                out.nodes[me] = KdNode::interior(axis, pos, out.nodes.len() as u32);
+                above.write(out);
+            }
+        }
+    }
+}
+
+thread_local! {
+    static SCRATCH: std::cell::Cell<Scratch> = std::cell::Cell::new(Scratch::default());
+}
+
 impl Subtree {
     fn append(&mut self, other: Subtree) {
         let (node_base, index_base) = (self.nodes.len() as u32, self.indices.len() as u32);
@@ -129,10 +203,10 @@ impl Subtree {
         self.depth = self.depth.max(other.depth);
     }
 
-    fn leaf(&mut self, mut triangles: Vec<u32>, depth: u32) {
+    fn leaf(&mut self, triangles: &mut [u32], depth: u32) {
         triangles.sort_unstable();
         self.nodes.push(KdNode::leaf(self.indices.len() as u32, triangles.len() as u32));
-        self.indices.extend_from_slice(&triangles);
+        self.indices.extend_from_slice(triangles);
         self.depth = self.depth.max(depth);
     }
 }
@@ -167,49 +241,58 @@ pub fn build(triangles: &[Tri64], bounds: Aabb, settings: &BuildSettings, max_de
         }
     }
     root.events.par_iter_mut().for_each(|list| list.par_sort_unstable_by(order));
-    let sub = sah.build_parallel(root);
+    let part = sah.build_parallel(root);
+    let (nodes, indices) = part.size();
+    let mut out = Subtree { nodes: Vec::with_capacity(nodes), indices: Vec::with_capacity(indices), depth: 0 };
+    part.write(&mut out);
     KdTree {
-        nodes: sub.nodes,
-        indices: sub.indices,
+        nodes: out.nodes,
+        indices: out.indices,
         bounds_min: shared::glam::Vec3::from(bounds.lo),
         bounds_max: shared::glam::Vec3::from(bounds.hi),
-        depth: sub.depth,
+        depth: out.depth,
     }
 }
 
 impl Sah<'_> {
-    fn build_parallel(&self, node: Node) -> Subtree {
+    fn build_parallel(&self, node: Node) -> Part {
         if node.triangles.len() < PARALLEL_MIN {
             let mut out = Subtree::default();
-            self.build_into(node, &mut out);
-            return out;
+            // One pool per thread, kept from one subtree to the next.
+            let mut scratch = SCRATCH.take();
+            self.build_into(node, &mut out, &mut scratch);
+            SCRATCH.set(scratch);
+            return Part::Built(out);
         }
-        let mut out = Subtree::default();
         match self.decide(&node) {
-            None => out.leaf(node.triangles, node.depth),
+            None => {
+                let mut out = Subtree::default();
+                let mut node = node;
+                out.leaf(&mut node.triangles, node.depth);
+                Part::Built(out)
+            }
             Some((plane, bad)) => {
-                let (below, above) = self.split(node, plane, bad);
+                let (below, above) = self.split(node, plane, bad, &mut Scratch::default());
                 let (b, a) = rayon::join(|| self.build_parallel(below), || self.build_parallel(above));
-                out.nodes.push(KdNode::default());
-                out.append(b);
-                let above_index = out.nodes.len() as u32;
-                out.nodes[0] = KdNode::interior(plane.axis as u32, plane.pos, above_index);
-                out.append(a);
+                Part::Split { axis: plane.axis as u32, pos: plane.pos, children: Box::new((b, a)) }
             }
         }
-        out
     }
 
-    fn build_into(&self, node: Node, out: &mut Subtree) {
+    fn build_into(&self, node: Node, out: &mut Subtree, scratch: &mut Scratch) {
         match self.decide(&node) {
-            None => out.leaf(node.triangles, node.depth),
+            None => {
+                let mut node = node;
+                out.leaf(&mut node.triangles, node.depth);
+                scratch.recycle(node);
+            }
             Some((plane, bad)) => {
-                let (below, above) = self.split(node, plane, bad);
+                let (below, above) = self.split(node, plane, bad, scratch);
                 let me = out.nodes.len();
                 out.nodes.push(KdNode::default());
-                self.build_into(below, out);
+                self.build_into(below, out, scratch);
                 out.nodes[me] = KdNode::interior(plane.axis as u32, plane.pos, out.nodes.len() as u32);
-                self.build_into(above, out);
+                self.build_into(above, out, scratch);
             }
         }
     }
@@ -306,16 +389,41 @@ impl Sah<'_> {
         Some(Plane { axis: k, pos, planar_below, cost, below: nb, above: na })
     }
 
+    /// A split with every reference on one side (the λ rule cutting off empty space, about half
+    /// the splits of a mesh's tree): nothing straddles, and the references keep their order and
+    /// numbering, so that side's child takes the node's lists as they are.
+    fn cut_off_empty(node: Node, plane: Plane, bad_refines: u32) -> (Node, Node) {
+        let Node { triangles, events, voxel, depth, bad_refines: _, budget } = node;
+        let (below_voxel, above_voxel) = voxel.split(plane.axis, plane.pos);
+        let depth = depth + 1;
+        // The same shares as `split` gives, computed the same way.
+        let refs = triangles.len().max(1) as f64;
+        let full = budget * triangles.len() as f64 / refs;
+        let empty = budget * 0.0 / refs;
+        let full_node = |voxel| Node { triangles, events, voxel, depth, bad_refines, budget: full };
+        let empty_node = |voxel| Node { triangles: Vec::new(), events: Default::default(), voxel, depth, bad_refines, budget: empty };
+        if plane.below == 0 {
+            (empty_node(below_voxel), full_node(above_voxel))
+        } else {
+            (full_node(below_voxel), empty_node(above_voxel))
+        }
+    }
+
     /// Partitions the node's references and events for `plane` (Wald & Havran §5.3).
-    fn split(&self, node: Node, plane: Plane, bad_refines: u32) -> (Node, Node) {
+    fn split(&self, node: Node, plane: Plane, bad_refines: u32, scratch: &mut Scratch) -> (Node, Node) {
         // One word per reference: first its side (`STRADDLES`, `BELOW` or `ABOVE_BIT`), then its
         // index in the child (with `ABOVE_BIT` set for the above child).
         const STRADDLES: u32 = u32::MAX;
         const BELOW: u32 = 0;
         const ABOVE_BIT: u32 = 1 << 31;
         let (k, pos) = (plane.axis, plane.pos);
+        if plane.below == 0 || plane.above == 0 {
+            return Self::cut_off_empty(node, plane, bad_refines);
+        }
         let n = node.triangles.len();
-        let mut code = vec![STRADDLES; n];
+        let mut code = std::mem::take(&mut scratch.code);
+        code.clear();
+        code.resize(n, STRADDLES);
         for e in &node.events[k] {
             let r = e.reference();
             match e.kind() {
@@ -326,8 +434,10 @@ impl Sah<'_> {
             }
         }
         let (below_voxel, above_voxel) = node.voxel.split(k, pos);
-        let mut tris: [Vec<u32>; 2] = [Vec::with_capacity(plane.below), Vec::with_capacity(plane.above)];
-        let mut fresh: [[Vec<Event>; 3]; 2] = Default::default();
+        let mut tris: [Vec<u32>; 2] = [scratch.triangles(), scratch.triangles()];
+        tris[0].reserve(plane.below);
+        tris[1].reserve(plane.above);
+        let mut fresh = std::mem::take(&mut scratch.fresh);
         for (r, c) in code.iter_mut().enumerate() {
             let t = node.triangles[r];
             if *c == STRADDLES {
@@ -345,32 +455,40 @@ impl Sah<'_> {
             }
         }
         let mut events: [[Vec<Event>; 3]; 2] = Default::default();
-        let [old_x, old_y, old_z] = node.events;
+        let Node { triangles: old_triangles, events: [old_x, old_y, old_z], voxel: _, depth: old_depth, bad_refines: _, budget } = node;
         for (axis, old) in [old_x, old_y, old_z].into_iter().enumerate() {
-            let mut out = [Vec::with_capacity(old.len().min(2 * tris[0].len())), Vec::with_capacity(old.len().min(2 * tris[1].len()))];
+            let mut out = [scratch.events(), scratch.events()];
+            out[0].reserve(old.len().min(2 * tris[0].len()));
+            out[1].reserve(old.len().min(2 * tris[1].len()));
             for e in &old {
                 let c = code[e.reference()];
                 if c != STRADDLES {
                     out[(c >> 31) as usize].push(Event { pos: e.pos, key: ((c & !ABOVE_BIT) << 2) | e.kind() });
                 }
             }
-            drop(old);
+            scratch.recycle_events(old);
             for (s, mut list) in out.into_iter().enumerate() {
-                let mut new = std::mem::take(&mut fresh[s][axis]);
+                let new = &mut fresh[s][axis];
                 if !new.is_empty() {
                     new.sort_unstable_by(order);
-                    merge_into(&mut list, &new);
+                    merge_into(&mut list, new);
+                    new.clear();
                 }
                 events[s][axis] = list;
             }
         }
+        scratch.code = code;
+        scratch.fresh = fresh;
+        let mut old_triangles = old_triangles;
+        old_triangles.clear();
+        scratch.triangle_lists.push(old_triangles);
         let [below_tris, above_tris] = tris;
         let [below_events, above_events] = events;
-        let depth = node.depth + 1;
+        let depth = old_depth + 1;
         // The budget follows the references: each child gets its share, so no subtree can take
         // more than the root allowed in all.
         let refs = (below_tris.len() + above_tris.len()).max(1) as f64;
-        let (below_budget, above_budget) = (node.budget * below_tris.len() as f64 / refs, node.budget * above_tris.len() as f64 / refs);
+        let (below_budget, above_budget) = (budget * below_tris.len() as f64 / refs, budget * above_tris.len() as f64 / refs);
         (
             Node { triangles: below_tris, events: below_events, voxel: below_voxel, depth, bad_refines, budget: below_budget },
             Node { triangles: above_tris, events: above_events, voxel: above_voxel, depth, bad_refines, budget: above_budget },

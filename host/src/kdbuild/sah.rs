@@ -142,6 +142,17 @@ struct Plane {
     above: usize,
 }
 
+/// What the cost of a plane on one axis of a voxel needs besides its position.
+struct Sweep {
+    /// The area of the voxel's face across the axis, and the length of that face's rim (each
+    /// halved, as `Aabb::area` doubles them).
+    face: f64,
+    rim: f64,
+    area: f64,
+    lo: f32,
+    hi: f32,
+}
+
 /// A subtree laid out on its own: child and index offsets are relative to its own arrays.
 #[derive(Default)]
 struct Subtree {
@@ -322,29 +333,33 @@ impl Sah<'_> {
 
     /// The cheapest plane over all three axes (one sweep over each axis's sorted events).
     fn find_plane(&self, node: &Node) -> Option<Plane> {
-        let area = node.voxel.area();
+        let voxel = &node.voxel;
+        let area = voxel.area();
         if !(area > 0.0) {
             return None;
         }
         let n = node.triangles.len();
         let mut best: Option<Plane> = None;
         for (k, events) in node.events.iter().enumerate() {
+            let (lo, hi) = (voxel.lo[k], voxel.hi[k]);
+            let (e1, e2) = (voxel.extent((k + 1) % 3), voxel.extent((k + 2) % 3));
+            let sweep = Sweep { face: e1 * e2, rim: e1 + e2, area, lo, hi };
             let (mut below, mut above) = (0usize, n);
             let mut i = 0;
             while i < events.len() {
+                // Sorted by position and then kind, so one run holds every event at `pos`.
                 let pos = events[i].pos;
-                let mut count = [0usize; 3];
-                for kind in [END, PLANAR, START] {
-                    while i < events.len() && events[i].pos == pos && events[i].kind() == kind {
-                        count[kind as usize] += 1;
-                        i += 1;
-                    }
+                let mut count = [0usize; 4];
+                while i < events.len() && events[i].pos == pos {
+                    count[events[i].kind() as usize] += 1;
+                    i += 1;
                 }
                 let planar = count[PLANAR as usize];
                 above -= count[END as usize] + planar;
-                if let Some(p) = self.evaluate(&node.voxel, area, k, pos, below, planar, above) {
-                    if best.is_none_or(|b| p.cost < b.cost) {
-                        best = Some(p);
+                if let Some((cost, planar_below)) = self.evaluate(&sweep, pos, below, planar, above) {
+                    if best.is_none_or(|b| cost < b.cost) {
+                        let (nb, na) = if planar_below { (below + planar, above) } else { (below, above + planar) };
+                        best = Some(Plane { axis: k, pos, planar_below, cost, below: nb, above: na });
                     }
                 }
                 below += count[START as usize] + planar;
@@ -353,40 +368,31 @@ impl Sah<'_> {
         best
     }
 
-    /// The cost of splitting at `pos` on axis `k` with the planar triangles on the cheaper side;
-    /// `None` for a split that makes no progress (an empty child whose sibling is the voxel).
-    #[allow(clippy::too_many_arguments)]
-    fn evaluate(&self, voxel: &Aabb, area: f64, k: usize, pos: f32, below: usize, planar: usize, above: usize) -> Option<Plane> {
-        let (lo, hi) = (voxel.lo[k], voxel.hi[k]);
-        let (e1, e2) = (voxel.extent((k + 1) % 3), voxel.extent((k + 2) % 3));
-        let face = e1 * e2;
-        let rim = e1 + e2;
-        let p_below = 2.0 * (face + (pos as f64 - lo as f64) * rim) / area;
-        let p_above = 2.0 * (face + (hi as f64 - pos as f64) * rim) / area;
+    /// The cost of splitting at `pos` with the planar triangles on the cheaper side, and whether
+    /// that side is below; `None` for a split that makes no progress (an empty child whose
+    /// sibling is the voxel).
+    #[inline]
+    fn evaluate(&self, s: &Sweep, pos: f32, below: usize, planar: usize, above: usize) -> Option<(f64, bool)> {
+        let p_below = 2.0 * (s.face + (pos as f64 - s.lo as f64) * s.rim) / s.area;
+        let p_above = 2.0 * (s.face + (s.hi as f64 - pos as f64) * s.rim) / s.area;
+        let flat_on_boundary = pos == s.lo || pos == s.hi;
         let cost = |nb: usize, na: usize| -> Option<f64> {
-            if (nb == 0 && pos == lo) || (na == 0 && pos == hi) {
+            if (nb == 0 && pos == s.lo) || (na == 0 && pos == s.hi) {
                 return None;
             }
-            let flat_on_boundary = pos == lo || pos == hi;
             let lambda = if (nb == 0 || na == 0) && !flat_on_boundary { self.empty_factor } else { 1.0 };
             Some(lambda * (self.traversal_cost + self.intersection_cost * (p_below * nb as f64 + p_above * na as f64)))
         };
-        let with_below = cost(below + planar, above);
-        let with_above = cost(below, above + planar);
-        let (cost, planar_below) = match (with_below, with_above) {
-            (Some(b), Some(a)) => {
-                if b <= a {
-                    (b, true)
-                } else {
-                    (a, false)
-                }
-            }
-            (Some(b), None) => (b, true),
-            (None, Some(a)) => (a, false),
-            (None, None) => return None,
-        };
-        let (nb, na) = if planar_below { (below + planar, above) } else { (below, above + planar) };
-        Some(Plane { axis: k, pos, planar_below, cost, below: nb, above: na })
+        if planar == 0 {
+            // Both placements are the same split; ties go below.
+            return cost(below, above).map(|c| (c, true));
+        }
+        match (cost(below + planar, above), cost(below, above + planar)) {
+            (Some(b), Some(a)) => Some(if b <= a { (b, true) } else { (a, false) }),
+            (Some(b), None) => Some((b, true)),
+            (None, Some(a)) => Some((a, false)),
+            (None, None) => None,
+        }
     }
 
     /// A split with every reference on one side (the λ rule cutting off empty space, about half

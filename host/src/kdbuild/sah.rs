@@ -16,7 +16,7 @@
 //!   references until the depth limit, hundreds of times over.
 //! - The two children of a large node are built in parallel (rayon); each subtree is laid out
 //!   on its own and appended, so the tree does not depend on the number of threads.
-use super::clip::{clipped_box, Aabb, Tri64};
+use super::clip::{clipped_box, clipped_box_with, Aabb, ClipBuffers, Tri64};
 use super::{BuildSettings, KdTree};
 use rayon::prelude::*;
 use shared::layout::KdNode;
@@ -104,6 +104,7 @@ struct Scratch {
     triangle_lists: Vec<Vec<u32>>,
     code: Vec<u32>,
     fresh: [[Vec<Event>; 3]; 2],
+    clip: ClipBuffers,
 }
 
 impl Scratch {
@@ -449,7 +450,7 @@ impl Sah<'_> {
             if *c == STRADDLES {
                 // Clipped to each child (perfect splits); a child it misses drops it.
                 for (s, voxel) in [below_voxel, above_voxel].iter().enumerate() {
-                    if let Some(b) = clipped_box(&self.triangles[t as usize], voxel) {
+                    if let Some(b) = clipped_box_with(&self.triangles[t as usize], voxel, &mut scratch.clip) {
                         push_events(&mut fresh[s], tris[s].len(), &b);
                         tris[s].push(t);
                     }
@@ -463,15 +464,23 @@ impl Sah<'_> {
         let mut events: [[Vec<Event>; 3]; 2] = Default::default();
         let Node { triangles: old_triangles, events: [old_x, old_y, old_z], voxel: _, depth: old_depth, bad_refines: _, budget } = node;
         for (axis, old) in [old_x, old_y, old_z].into_iter().enumerate() {
-            let mut out = [scratch.events(), scratch.events()];
-            out[0].reserve(old.len().min(2 * tris[0].len()));
-            out[1].reserve(old.len().min(2 * tris[1].len()));
+            let (mut below, mut above) = (scratch.events(), scratch.events());
+            // Every event is written to both lists and kept by the side it belongs to: the side
+            // is as good as random in the large nodes, where a branch on it mispredicts.
+            below.resize(old.len(), Event { pos: 0.0, key: 0 });
+            above.resize(old.len(), Event { pos: 0.0, key: 0 });
+            let (mut nb, mut na) = (0, 0);
             for e in &old {
                 let c = code[e.reference()];
-                if c != STRADDLES {
-                    out[(c >> 31) as usize].push(Event { pos: e.pos, key: ((c & !ABOVE_BIT) << 2) | e.kind() });
-                }
+                let moved = Event { pos: e.pos, key: ((c & !ABOVE_BIT) << 2) | e.kind() };
+                below[nb] = moved;
+                above[na] = moved;
+                nb += (c < ABOVE_BIT) as usize;
+                na += (c >= ABOVE_BIT && c != STRADDLES) as usize;
             }
+            below.truncate(nb);
+            above.truncate(na);
+            let out = [below, above];
             scratch.recycle_events(old);
             for (s, mut list) in out.into_iter().enumerate() {
                 let new = &mut fresh[s][axis];

@@ -71,32 +71,40 @@ impl Polygon {
 /// Keeps the part of `input` with `x[k] >= bound` (`above`) or `x[k] <= bound`. Returns false if
 /// the output would overflow.
 fn clip_plane(input: &Polygon, out: &mut Polygon, k: usize, bound: f64, above: bool) -> bool {
-    out.len = 0;
-    let n = input.len;
+    let src = input.vertices();
     let inside = |p: &[f64; 3]| if above { p[k] >= bound } else { p[k] <= bound };
-    for i in 0..n {
-        let a = input.v[i];
-        let b = input.v[(i + 1) % n];
-        let (ia, ib) = (inside(&a), inside(&b));
+    // The count stays in a register and each vertex's side is tested once: this loop runs for
+    // every straddling triangle of every split.
+    let mut m = 0;
+    let Some(first) = src.first() else {
+        out.len = 0;
+        return true;
+    };
+    let mut ia = inside(first);
+    for (i, a) in src.iter().enumerate() {
+        let b = if i + 1 == src.len() { first } else { &src[i + 1] };
+        let ib = inside(b);
         if ia {
-            if out.len == MAX_VERTICES {
+            if m == MAX_VERTICES {
                 return false;
             }
-            out.v[out.len] = a;
-            out.len += 1;
+            out.v[m] = *a;
+            m += 1;
         }
         if ia != ib {
             let t = (bound - a[k]) / (b[k] - a[k]);
             let mut p = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]), a[2] + t * (b[2] - a[2])];
             // The crossing lies on the plane by construction; make it exact.
             p[k] = bound;
-            if out.len == MAX_VERTICES {
+            if m == MAX_VERTICES {
                 return false;
             }
-            out.v[out.len] = p;
-            out.len += 1;
+            out.v[m] = p;
+            m += 1;
         }
+        ia = ib;
     }
+    out.len = m;
     true
 }
 

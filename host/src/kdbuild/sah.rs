@@ -441,6 +441,10 @@ impl Sah<'_> {
             }
         }
         let (below_voxel, above_voxel) = node.voxel.split(k, pos);
+        // A child that `decide` will make a leaf before looking at its events (too few
+        // references, or at the depth limit) gets none: over a third of the children are such.
+        let depth = node.depth + 1;
+        let need = [plane.below, plane.above].map(|count| count > self.leaf_size && depth < self.max_depth);
         let mut tris: [Vec<u32>; 2] = [scratch.triangles(), scratch.triangles()];
         tris[0].reserve(plane.below);
         tris[1].reserve(plane.above);
@@ -451,7 +455,9 @@ impl Sah<'_> {
                 // Clipped to each child (perfect splits); a child it misses drops it.
                 for (s, voxel) in [below_voxel, above_voxel].iter().enumerate() {
                     if let Some(b) = clipped_box_with(&self.triangles[t as usize], voxel, &mut scratch.clip) {
-                        push_events(&mut fresh[s], tris[s].len(), &b);
+                        if need[s] {
+                            push_events(&mut fresh[s], tris[s].len(), &b);
+                        }
                         tris[s].push(t);
                     }
                 }
@@ -462,24 +468,33 @@ impl Sah<'_> {
             }
         }
         let mut events: [[Vec<Event>; 3]; 2] = Default::default();
-        let Node { triangles: old_triangles, events: [old_x, old_y, old_z], voxel: _, depth: old_depth, bad_refines: _, budget } = node;
+        let Node { triangles: old_triangles, events: [old_x, old_y, old_z], voxel: _, depth: _, bad_refines: _, budget } = node;
         for (axis, old) in [old_x, old_y, old_z].into_iter().enumerate() {
             let (mut below, mut above) = (scratch.events(), scratch.events());
-            // Every event is written to both lists and kept by the side it belongs to: the side
-            // is as good as random in the large nodes, where a branch on it mispredicts.
-            below.resize(old.len(), Event { pos: 0.0, key: 0 });
-            above.resize(old.len(), Event { pos: 0.0, key: 0 });
-            let (mut nb, mut na) = (0, 0);
-            for e in &old {
-                let c = code[e.reference()];
-                let moved = Event { pos: e.pos, key: ((c & !ABOVE_BIT) << 2) | e.kind() };
-                below[nb] = moved;
-                above[na] = moved;
-                nb += (c < ABOVE_BIT) as usize;
-                na += (c >= ABOVE_BIT && c != STRADDLES) as usize;
+            let moved = |e: &Event, c: u32| Event { pos: e.pos, key: ((c & !ABOVE_BIT) << 2) | e.kind() };
+            match need {
+                [true, true] => {
+                    // Every event is written to both lists and kept by the side it belongs to:
+                    // the side is as good as random in the large nodes, where a branch on it
+                    // mispredicts.
+                    below.resize(old.len(), Event { pos: 0.0, key: 0 });
+                    above.resize(old.len(), Event { pos: 0.0, key: 0 });
+                    let (mut nb, mut na) = (0, 0);
+                    for e in &old {
+                        let c = code[e.reference()];
+                        let m = moved(e, c);
+                        below[nb] = m;
+                        above[na] = m;
+                        nb += (c < ABOVE_BIT) as usize;
+                        na += (c >= ABOVE_BIT && c != STRADDLES) as usize;
+                    }
+                    below.truncate(nb);
+                    above.truncate(na);
+                }
+                [true, false] => below.extend(old.iter().filter_map(|e| Some(code[e.reference()]).filter(|&c| c < ABOVE_BIT).map(|c| moved(e, c)))),
+                [false, true] => above.extend(old.iter().filter_map(|e| Some(code[e.reference()]).filter(|&c| c >= ABOVE_BIT && c != STRADDLES).map(|c| moved(e, c)))),
+                [false, false] => {}
             }
-            below.truncate(nb);
-            above.truncate(na);
             let out = [below, above];
             scratch.recycle_events(old);
             for (s, mut list) in out.into_iter().enumerate() {
@@ -499,7 +514,6 @@ impl Sah<'_> {
         scratch.triangle_lists.push(old_triangles);
         let [below_tris, above_tris] = tris;
         let [below_events, above_events] = events;
-        let depth = old_depth + 1;
         // The budget follows the references: each child gets its share, so no subtree can take
         // more than the root allowed in all.
         let refs = (below_tris.len() + above_tris.len()).max(1) as f64;

@@ -15,7 +15,12 @@
 //!   tree): long thin triangles crossing many cells (needles, fans) otherwise multiply their
 //!   references until the depth limit, hundreds of times over.
 //! - The two children of a large node are built in parallel (rayon); each subtree is laid out
-//!   on its own and appended, so the tree does not depend on the number of threads.
+//!   on its own and written into the final arrays once at the end, so the tree does not depend
+//!   on the number of threads.
+//! - Most of the work is the deep tail of small nodes (on the meshes, nine nodes in ten hold
+//!   fewer than eight references, and half the splits cut off empty space), so the bookkeeping
+//!   is kept off that path: lists come from per-thread pools, a split with one empty side hands
+//!   its lists to the other child unchanged, and a child that will be a leaf gets no events.
 use super::clip::{clipped_box, clipped_box_with, Aabb, ClipBuffers, Tri64};
 use super::{BuildSettings, KdTree};
 use rayon::prelude::*;

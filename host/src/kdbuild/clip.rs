@@ -71,58 +71,86 @@ impl Polygon {
 /// Keeps the part of `input` with `x[k] >= bound` (`above`) or `x[k] <= bound`. Returns false if
 /// the output would overflow.
 fn clip_plane(input: &Polygon, out: &mut Polygon, k: usize, bound: f64, above: bool) -> bool {
-    out.len = 0;
-    let n = input.len;
+    let src = input.vertices();
     let inside = |p: &[f64; 3]| if above { p[k] >= bound } else { p[k] <= bound };
-    for i in 0..n {
-        let a = input.v[i];
-        let b = input.v[(i + 1) % n];
-        let (ia, ib) = (inside(&a), inside(&b));
+    // The count stays in a register and each vertex's side is tested once: this loop runs for
+    // every straddling triangle of every split.
+    let mut m = 0;
+    let Some(first) = src.first() else {
+        out.len = 0;
+        return true;
+    };
+    let mut ia = inside(first);
+    for (i, a) in src.iter().enumerate() {
+        let b = if i + 1 == src.len() { first } else { &src[i + 1] };
+        let ib = inside(b);
         if ia {
-            if out.len == MAX_VERTICES {
+            if m == MAX_VERTICES {
                 return false;
             }
-            out.v[out.len] = a;
-            out.len += 1;
+            out.v[m] = *a;
+            m += 1;
         }
         if ia != ib {
             let t = (bound - a[k]) / (b[k] - a[k]);
             let mut p = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]), a[2] + t * (b[2] - a[2])];
             // The crossing lies on the plane by construction; make it exact.
             p[k] = bound;
-            if out.len == MAX_VERTICES {
+            if m == MAX_VERTICES {
                 return false;
             }
-            out.v[out.len] = p;
-            out.len += 1;
+            out.v[m] = p;
+            m += 1;
+        }
+        ia = ib;
+    }
+    out.len = m;
+    true
+}
+
+/// Two polygons that clipping alternates between. A builder keeps one pair for all its clips:
+/// a polygon is 400 bytes, and making and copying fresh ones cost more than clipping the few
+/// vertices a triangle has.
+#[derive(Clone, Copy)]
+pub struct ClipBuffers([Polygon; 2]);
+
+impl Default for ClipBuffers {
+    fn default() -> Self {
+        Self([Polygon { v: [[0.0; 3]; MAX_VERTICES], len: 0 }; 2])
+    }
+}
+
+/// Clips into `bufs` and returns which of the two holds the result, or `None` on overflow.
+fn clip_into(t: &Tri64, b: &Aabb, bufs: &mut ClipBuffers) -> Option<usize> {
+    let [first, second] = &mut bufs.0;
+    first.v[..3].copy_from_slice(t);
+    first.len = 3;
+    let mut cur = 0;
+    for k in 0..3 {
+        for (bound, above) in [(b.lo[k] as f64, true), (b.hi[k] as f64, false)] {
+            let (from, to) = if cur == 0 { (&*first, &mut *second) } else { (&*second, &mut *first) };
+            // Most planes cut nothing (a child voxel differs from its parent by one plane).
+            if from.vertices().iter().all(|p| if above { p[k] >= bound } else { p[k] <= bound }) {
+                continue;
+            }
+            if !clip_plane(from, to, k, bound, above) {
+                return None;
+            }
+            cur ^= 1;
+            if to.len == 0 {
+                return Some(cur);
+            }
         }
     }
-    true
+    Some(cur)
 }
 
 /// The part of the triangle inside the closed box, or `None` if clipping overflowed (never for
 /// a proper triangle; the caller then falls back to the unclipped box). An empty polygon
 /// (`len == 0`) means the triangle misses the box.
 pub fn clip_polygon(t: &Tri64, b: &Aabb) -> Option<Polygon> {
-    let mut cur = Polygon { v: [[0.0; 3]; MAX_VERTICES], len: 3 };
-    cur.v[..3].copy_from_slice(t);
-    let mut next = cur;
-    for k in 0..3 {
-        for (bound, above) in [(b.lo[k] as f64, true), (b.hi[k] as f64, false)] {
-            // Most planes cut nothing (a child voxel differs from its parent by one plane).
-            if cur.vertices().iter().all(|p| if above { p[k] >= bound } else { p[k] <= bound }) {
-                continue;
-            }
-            if !clip_plane(&cur, &mut next, k, bound, above) {
-                return None;
-            }
-            std::mem::swap(&mut cur, &mut next);
-            if cur.len == 0 {
-                return Some(cur);
-            }
-        }
-    }
-    Some(cur)
+    let mut bufs = ClipBuffers::default();
+    clip_into(t, b, &mut bufs).map(|i| bufs.0[i])
 }
 
 /// Largest f32 not above `x`.
@@ -148,6 +176,11 @@ fn round_up(x: f64) -> f32 {
 /// The bounding box of the triangle's part inside `voxel`, rounded outward to f32 and clamped
 /// to the voxel; `None` when the triangle misses the voxel.
 pub fn clipped_box(t: &Tri64, voxel: &Aabb) -> Option<Aabb> {
+    clipped_box_with(t, voxel, &mut ClipBuffers::default())
+}
+
+/// `clipped_box` with the caller's clipping buffers.
+pub fn clipped_box_with(t: &Tri64, voxel: &Aabb, bufs: &mut ClipBuffers) -> Option<Aabb> {
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
     for p in t {
@@ -158,7 +191,8 @@ pub fn clipped_box(t: &Tri64, voxel: &Aabb) -> Option<Aabb> {
     }
     let inside = (0..3).all(|k| lo[k] >= voxel.lo[k] as f64 && hi[k] <= voxel.hi[k] as f64);
     if !inside {
-        if let Some(poly) = clip_polygon(t, voxel) {
+        if let Some(i) = clip_into(t, voxel, bufs) {
+            let poly = &bufs.0[i];
             if poly.len == 0 {
                 return None;
             }

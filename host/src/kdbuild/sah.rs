@@ -15,8 +15,13 @@
 //!   tree): long thin triangles crossing many cells (needles, fans) otherwise multiply their
 //!   references until the depth limit, hundreds of times over.
 //! - The two children of a large node are built in parallel (rayon); each subtree is laid out
-//!   on its own and appended, so the tree does not depend on the number of threads.
-use super::clip::{clipped_box, Aabb, Tri64};
+//!   on its own and written into the final arrays once at the end, so the tree does not depend
+//!   on the number of threads.
+//! - Most of the work is the deep tail of small nodes (on the meshes, nine nodes in ten hold
+//!   fewer than eight references, and half the splits cut off empty space), so the bookkeeping
+//!   is kept off that path: lists come from per-thread pools, a split with one empty side hands
+//!   its lists to the other child unchanged, and a child that will be a leaf gets no events.
+use super::clip::{clipped_box, clipped_box_with, Aabb, ClipBuffers, Tri64};
 use super::{BuildSettings, KdTree};
 use rayon::prelude::*;
 use shared::layout::KdNode;
@@ -95,6 +100,42 @@ struct Node {
     budget: f64,
 }
 
+/// Buffers one thread reuses from node to node: the deep tail of the tree is millions of nodes
+/// of a few references each, where allocating and freeing a dozen lists per split would cost
+/// more than the split itself. Lists freed by a node go back to the pool and serve the next.
+#[derive(Default)]
+struct Scratch {
+    event_lists: Vec<Vec<Event>>,
+    triangle_lists: Vec<Vec<u32>>,
+    code: Vec<u32>,
+    fresh: [[Vec<Event>; 3]; 2],
+    clip: ClipBuffers,
+}
+
+impl Scratch {
+    fn events(&mut self) -> Vec<Event> {
+        self.event_lists.pop().unwrap_or_default()
+    }
+
+    fn triangles(&mut self) -> Vec<u32> {
+        self.triangle_lists.pop().unwrap_or_default()
+    }
+
+    fn recycle_events(&mut self, mut list: Vec<Event>) {
+        list.clear();
+        self.event_lists.push(list);
+    }
+
+    fn recycle(&mut self, node: Node) {
+        let Node { mut triangles, events, .. } = node;
+        triangles.clear();
+        self.triangle_lists.push(triangles);
+        for list in events {
+            self.recycle_events(list);
+        }
+    }
+}
+
 #[derive(Clone, Copy, Debug)]
 struct Plane {
     axis: usize,
@@ -107,12 +148,62 @@ struct Plane {
     above: usize,
 }
 
+/// What the cost of a plane on one axis of a voxel needs besides its position.
+struct Sweep {
+    /// The area of the voxel's face across the axis, and the length of that face's rim (each
+    /// halved, as `Aabb::area` doubles them).
+    face: f64,
+    rim: f64,
+    area: f64,
+    lo: f32,
+    hi: f32,
+}
+
 /// A subtree laid out on its own: child and index offsets are relative to its own arrays.
 #[derive(Default)]
 struct Subtree {
     nodes: Vec<KdNode>,
     indices: Vec<u32>,
     depth: u32,
+}
+
+/// The top of the tree as the parallel tasks built it: subtrees each laid out on its own, joined
+/// by the splits above them. Written out once at the end, into arrays of the final size, so no
+/// node is copied more than once whatever the number of parallel levels.
+enum Part {
+    Built(Subtree),
+    Split { axis: u32, pos: f32, children: Box<(Part, Part)> },
+}
+
+impl Part {
+    /// (nodes, indices) in all.
+    fn size(&self) -> (usize, usize) {
+        match self {
+            Part::Built(sub) => (sub.nodes.len(), sub.indices.len()),
+            Part::Split { children, .. } => {
+                let ((bn, bi), (an, ai)) = (children.0.size(), children.1.size());
+                (1 + bn + an, bi + ai)
+            }
+        }
+    }
+
+    fn write(self, out: &mut Subtree) {
+        match self {
+            Part::Built(sub) => out.append(sub),
+            Part::Split { axis, pos, children } => {
+                let (below, above) = *children;
+                let me = out.nodes.len();
+                out.nodes.push(KdNode::default());
+                below.write(out);
+                out.nodes[me] = KdNode::interior(axis, pos, out.nodes.len() as u32);
+                above.write(out);
+            }
+        }
+    }
+}
+
+thread_local! {
+    static SCRATCH: std::cell::Cell<Scratch> = std::cell::Cell::new(Scratch::default());
 }
 
 impl Subtree {
@@ -129,10 +220,10 @@ impl Subtree {
         self.depth = self.depth.max(other.depth);
     }
 
-    fn leaf(&mut self, mut triangles: Vec<u32>, depth: u32) {
+    fn leaf(&mut self, triangles: &mut [u32], depth: u32) {
         triangles.sort_unstable();
         self.nodes.push(KdNode::leaf(self.indices.len() as u32, triangles.len() as u32));
-        self.indices.extend_from_slice(&triangles);
+        self.indices.extend_from_slice(triangles);
         self.depth = self.depth.max(depth);
     }
 }
@@ -167,49 +258,58 @@ pub fn build(triangles: &[Tri64], bounds: Aabb, settings: &BuildSettings, max_de
         }
     }
     root.events.par_iter_mut().for_each(|list| list.par_sort_unstable_by(order));
-    let sub = sah.build_parallel(root);
+    let part = sah.build_parallel(root);
+    let (nodes, indices) = part.size();
+    let mut out = Subtree { nodes: Vec::with_capacity(nodes), indices: Vec::with_capacity(indices), depth: 0 };
+    part.write(&mut out);
     KdTree {
-        nodes: sub.nodes,
-        indices: sub.indices,
+        nodes: out.nodes,
+        indices: out.indices,
         bounds_min: shared::glam::Vec3::from(bounds.lo),
         bounds_max: shared::glam::Vec3::from(bounds.hi),
-        depth: sub.depth,
+        depth: out.depth,
     }
 }
 
 impl Sah<'_> {
-    fn build_parallel(&self, node: Node) -> Subtree {
+    fn build_parallel(&self, node: Node) -> Part {
         if node.triangles.len() < PARALLEL_MIN {
             let mut out = Subtree::default();
-            self.build_into(node, &mut out);
-            return out;
+            // One pool per thread, kept from one subtree to the next.
+            let mut scratch = SCRATCH.take();
+            self.build_into(node, &mut out, &mut scratch);
+            SCRATCH.set(scratch);
+            return Part::Built(out);
         }
-        let mut out = Subtree::default();
         match self.decide(&node) {
-            None => out.leaf(node.triangles, node.depth),
+            None => {
+                let mut out = Subtree::default();
+                let mut node = node;
+                out.leaf(&mut node.triangles, node.depth);
+                Part::Built(out)
+            }
             Some((plane, bad)) => {
-                let (below, above) = self.split(node, plane, bad);
+                let (below, above) = self.split(node, plane, bad, &mut Scratch::default());
                 let (b, a) = rayon::join(|| self.build_parallel(below), || self.build_parallel(above));
-                out.nodes.push(KdNode::default());
-                out.append(b);
-                let above_index = out.nodes.len() as u32;
-                out.nodes[0] = KdNode::interior(plane.axis as u32, plane.pos, above_index);
-                out.append(a);
+                Part::Split { axis: plane.axis as u32, pos: plane.pos, children: Box::new((b, a)) }
             }
         }
-        out
     }
 
-    fn build_into(&self, node: Node, out: &mut Subtree) {
+    fn build_into(&self, node: Node, out: &mut Subtree, scratch: &mut Scratch) {
         match self.decide(&node) {
-            None => out.leaf(node.triangles, node.depth),
+            None => {
+                let mut node = node;
+                out.leaf(&mut node.triangles, node.depth);
+                scratch.recycle(node);
+            }
             Some((plane, bad)) => {
-                let (below, above) = self.split(node, plane, bad);
+                let (below, above) = self.split(node, plane, bad, scratch);
                 let me = out.nodes.len();
                 out.nodes.push(KdNode::default());
-                self.build_into(below, out);
+                self.build_into(below, out, scratch);
                 out.nodes[me] = KdNode::interior(plane.axis as u32, plane.pos, out.nodes.len() as u32);
-                self.build_into(above, out);
+                self.build_into(above, out, scratch);
             }
         }
     }
@@ -239,29 +339,33 @@ impl Sah<'_> {
 
     /// The cheapest plane over all three axes (one sweep over each axis's sorted events).
     fn find_plane(&self, node: &Node) -> Option<Plane> {
-        let area = node.voxel.area();
+        let voxel = &node.voxel;
+        let area = voxel.area();
         if !(area > 0.0) {
             return None;
         }
         let n = node.triangles.len();
         let mut best: Option<Plane> = None;
         for (k, events) in node.events.iter().enumerate() {
+            let (lo, hi) = (voxel.lo[k], voxel.hi[k]);
+            let (e1, e2) = (voxel.extent((k + 1) % 3), voxel.extent((k + 2) % 3));
+            let sweep = Sweep { face: e1 * e2, rim: e1 + e2, area, lo, hi };
             let (mut below, mut above) = (0usize, n);
             let mut i = 0;
             while i < events.len() {
+                // Sorted by position and then kind, so one run holds every event at `pos`.
                 let pos = events[i].pos;
-                let mut count = [0usize; 3];
-                for kind in [END, PLANAR, START] {
-                    while i < events.len() && events[i].pos == pos && events[i].kind() == kind {
-                        count[kind as usize] += 1;
-                        i += 1;
-                    }
+                let mut count = [0usize; 4];
+                while i < events.len() && events[i].pos == pos {
+                    count[events[i].kind() as usize] += 1;
+                    i += 1;
                 }
                 let planar = count[PLANAR as usize];
                 above -= count[END as usize] + planar;
-                if let Some(p) = self.evaluate(&node.voxel, area, k, pos, below, planar, above) {
-                    if best.is_none_or(|b| p.cost < b.cost) {
-                        best = Some(p);
+                if let Some((cost, planar_below)) = self.evaluate(&sweep, pos, below, planar, above) {
+                    if best.is_none_or(|b| cost < b.cost) {
+                        let (nb, na) = if planar_below { (below + planar, above) } else { (below, above + planar) };
+                        best = Some(Plane { axis: k, pos, planar_below, cost, below: nb, above: na });
                     }
                 }
                 below += count[START as usize] + planar;
@@ -270,52 +374,68 @@ impl Sah<'_> {
         best
     }
 
-    /// The cost of splitting at `pos` on axis `k` with the planar triangles on the cheaper side;
-    /// `None` for a split that makes no progress (an empty child whose sibling is the voxel).
-    #[allow(clippy::too_many_arguments)]
-    fn evaluate(&self, voxel: &Aabb, area: f64, k: usize, pos: f32, below: usize, planar: usize, above: usize) -> Option<Plane> {
-        let (lo, hi) = (voxel.lo[k], voxel.hi[k]);
-        let (e1, e2) = (voxel.extent((k + 1) % 3), voxel.extent((k + 2) % 3));
-        let face = e1 * e2;
-        let rim = e1 + e2;
-        let p_below = 2.0 * (face + (pos as f64 - lo as f64) * rim) / area;
-        let p_above = 2.0 * (face + (hi as f64 - pos as f64) * rim) / area;
+    /// The cost of splitting at `pos` with the planar triangles on the cheaper side, and whether
+    /// that side is below; `None` for a split that makes no progress (an empty child whose
+    /// sibling is the voxel).
+    #[inline]
+    fn evaluate(&self, s: &Sweep, pos: f32, below: usize, planar: usize, above: usize) -> Option<(f64, bool)> {
+        let p_below = 2.0 * (s.face + (pos as f64 - s.lo as f64) * s.rim) / s.area;
+        let p_above = 2.0 * (s.face + (s.hi as f64 - pos as f64) * s.rim) / s.area;
+        let flat_on_boundary = pos == s.lo || pos == s.hi;
         let cost = |nb: usize, na: usize| -> Option<f64> {
-            if (nb == 0 && pos == lo) || (na == 0 && pos == hi) {
+            if (nb == 0 && pos == s.lo) || (na == 0 && pos == s.hi) {
                 return None;
             }
-            let flat_on_boundary = pos == lo || pos == hi;
             let lambda = if (nb == 0 || na == 0) && !flat_on_boundary { self.empty_factor } else { 1.0 };
             Some(lambda * (self.traversal_cost + self.intersection_cost * (p_below * nb as f64 + p_above * na as f64)))
         };
-        let with_below = cost(below + planar, above);
-        let with_above = cost(below, above + planar);
-        let (cost, planar_below) = match (with_below, with_above) {
-            (Some(b), Some(a)) => {
-                if b <= a {
-                    (b, true)
-                } else {
-                    (a, false)
-                }
-            }
-            (Some(b), None) => (b, true),
-            (None, Some(a)) => (a, false),
-            (None, None) => return None,
-        };
-        let (nb, na) = if planar_below { (below + planar, above) } else { (below, above + planar) };
-        Some(Plane { axis: k, pos, planar_below, cost, below: nb, above: na })
+        if planar == 0 {
+            // Both placements are the same split; ties go below.
+            return cost(below, above).map(|c| (c, true));
+        }
+        match (cost(below + planar, above), cost(below, above + planar)) {
+            (Some(b), Some(a)) => Some(if b <= a { (b, true) } else { (a, false) }),
+            (Some(b), None) => Some((b, true)),
+            (None, Some(a)) => Some((a, false)),
+            (None, None) => None,
+        }
+    }
+
+    /// A split with every reference on one side (the λ rule cutting off empty space, about half
+    /// the splits of a mesh's tree): nothing straddles, and the references keep their order and
+    /// numbering, so that side's child takes the node's lists as they are.
+    fn cut_off_empty(node: Node, plane: Plane, bad_refines: u32) -> (Node, Node) {
+        let Node { triangles, events, voxel, depth, bad_refines: _, budget } = node;
+        let (below_voxel, above_voxel) = voxel.split(plane.axis, plane.pos);
+        let depth = depth + 1;
+        // The same shares as `split` gives, computed the same way.
+        let refs = triangles.len().max(1) as f64;
+        let full = budget * triangles.len() as f64 / refs;
+        let empty = budget * 0.0 / refs;
+        let full_node = |voxel| Node { triangles, events, voxel, depth, bad_refines, budget: full };
+        let empty_node = |voxel| Node { triangles: Vec::new(), events: Default::default(), voxel, depth, bad_refines, budget: empty };
+        if plane.below == 0 {
+            (empty_node(below_voxel), full_node(above_voxel))
+        } else {
+            (full_node(below_voxel), empty_node(above_voxel))
+        }
     }
 
     /// Partitions the node's references and events for `plane` (Wald & Havran §5.3).
-    fn split(&self, node: Node, plane: Plane, bad_refines: u32) -> (Node, Node) {
+    fn split(&self, node: Node, plane: Plane, bad_refines: u32, scratch: &mut Scratch) -> (Node, Node) {
         // One word per reference: first its side (`STRADDLES`, `BELOW` or `ABOVE_BIT`), then its
         // index in the child (with `ABOVE_BIT` set for the above child).
         const STRADDLES: u32 = u32::MAX;
         const BELOW: u32 = 0;
         const ABOVE_BIT: u32 = 1 << 31;
         let (k, pos) = (plane.axis, plane.pos);
+        if plane.below == 0 || plane.above == 0 {
+            return Self::cut_off_empty(node, plane, bad_refines);
+        }
         let n = node.triangles.len();
-        let mut code = vec![STRADDLES; n];
+        let mut code = std::mem::take(&mut scratch.code);
+        code.clear();
+        code.resize(n, STRADDLES);
         for e in &node.events[k] {
             let r = e.reference();
             match e.kind() {
@@ -326,15 +446,23 @@ impl Sah<'_> {
             }
         }
         let (below_voxel, above_voxel) = node.voxel.split(k, pos);
-        let mut tris: [Vec<u32>; 2] = [Vec::with_capacity(plane.below), Vec::with_capacity(plane.above)];
-        let mut fresh: [[Vec<Event>; 3]; 2] = Default::default();
+        // A child that `decide` will make a leaf before looking at its events (too few
+        // references, or at the depth limit) gets none: over a third of the children are such.
+        let depth = node.depth + 1;
+        let need = [plane.below, plane.above].map(|count| count > self.leaf_size && depth < self.max_depth);
+        let mut tris: [Vec<u32>; 2] = [scratch.triangles(), scratch.triangles()];
+        tris[0].reserve(plane.below);
+        tris[1].reserve(plane.above);
+        let mut fresh = std::mem::take(&mut scratch.fresh);
         for (r, c) in code.iter_mut().enumerate() {
             let t = node.triangles[r];
             if *c == STRADDLES {
                 // Clipped to each child (perfect splits); a child it misses drops it.
                 for (s, voxel) in [below_voxel, above_voxel].iter().enumerate() {
-                    if let Some(b) = clipped_box(&self.triangles[t as usize], voxel) {
-                        push_events(&mut fresh[s], tris[s].len(), &b);
+                    if let Some(b) = clipped_box_with(&self.triangles[t as usize], voxel, &mut scratch.clip) {
+                        if need[s] {
+                            push_events(&mut fresh[s], tris[s].len(), &b);
+                        }
                         tris[s].push(t);
                     }
                 }
@@ -345,32 +473,56 @@ impl Sah<'_> {
             }
         }
         let mut events: [[Vec<Event>; 3]; 2] = Default::default();
-        let [old_x, old_y, old_z] = node.events;
+        let Node { triangles: old_triangles, events: [old_x, old_y, old_z], voxel: _, depth: _, bad_refines: _, budget } = node;
         for (axis, old) in [old_x, old_y, old_z].into_iter().enumerate() {
-            let mut out = [Vec::with_capacity(old.len().min(2 * tris[0].len())), Vec::with_capacity(old.len().min(2 * tris[1].len()))];
-            for e in &old {
-                let c = code[e.reference()];
-                if c != STRADDLES {
-                    out[(c >> 31) as usize].push(Event { pos: e.pos, key: ((c & !ABOVE_BIT) << 2) | e.kind() });
+            let (mut below, mut above) = (scratch.events(), scratch.events());
+            let moved = |e: &Event, c: u32| Event { pos: e.pos, key: ((c & !ABOVE_BIT) << 2) | e.kind() };
+            match need {
+                [true, true] => {
+                    // Every event is written to both lists and kept by the side it belongs to:
+                    // the side is as good as random in the large nodes, where a branch on it
+                    // mispredicts.
+                    below.resize(old.len(), Event { pos: 0.0, key: 0 });
+                    above.resize(old.len(), Event { pos: 0.0, key: 0 });
+                    let (mut nb, mut na) = (0, 0);
+                    for e in &old {
+                        let c = code[e.reference()];
+                        let m = moved(e, c);
+                        below[nb] = m;
+                        above[na] = m;
+                        nb += (c < ABOVE_BIT) as usize;
+                        na += (c >= ABOVE_BIT && c != STRADDLES) as usize;
+                    }
+                    below.truncate(nb);
+                    above.truncate(na);
                 }
+                [true, false] => below.extend(old.iter().filter_map(|e| Some(code[e.reference()]).filter(|&c| c < ABOVE_BIT).map(|c| moved(e, c)))),
+                [false, true] => above.extend(old.iter().filter_map(|e| Some(code[e.reference()]).filter(|&c| c >= ABOVE_BIT && c != STRADDLES).map(|c| moved(e, c)))),
+                [false, false] => {}
             }
-            drop(old);
+            let out = [below, above];
+            scratch.recycle_events(old);
             for (s, mut list) in out.into_iter().enumerate() {
-                let mut new = std::mem::take(&mut fresh[s][axis]);
+                let new = &mut fresh[s][axis];
                 if !new.is_empty() {
                     new.sort_unstable_by(order);
-                    merge_into(&mut list, &new);
+                    merge_into(&mut list, new);
+                    new.clear();
                 }
                 events[s][axis] = list;
             }
         }
+        scratch.code = code;
+        scratch.fresh = fresh;
+        let mut old_triangles = old_triangles;
+        old_triangles.clear();
+        scratch.triangle_lists.push(old_triangles);
         let [below_tris, above_tris] = tris;
         let [below_events, above_events] = events;
-        let depth = node.depth + 1;
         // The budget follows the references: each child gets its share, so no subtree can take
         // more than the root allowed in all.
         let refs = (below_tris.len() + above_tris.len()).max(1) as f64;
-        let (below_budget, above_budget) = (node.budget * below_tris.len() as f64 / refs, node.budget * above_tris.len() as f64 / refs);
+        let (below_budget, above_budget) = (budget * below_tris.len() as f64 / refs, budget * above_tris.len() as f64 / refs);
         (
             Node { triangles: below_tris, events: below_events, voxel: below_voxel, depth, bad_refines, budget: below_budget },
             Node { triangles: above_tris, events: above_events, voxel: above_voxel, depth, bad_refines, budget: above_budget },

@@ -32,6 +32,40 @@ fn assert_same(a: &Compiled, b: &Compiled) {
     assert_eq!(a.tree.nodes, b.tree.nodes);
     assert_eq!(a.tree.indices, b.tree.indices);
     assert_eq!((a.tree.bounds_min, a.tree.bounds_max, a.tree.depth), (b.tree.bounds_min, b.tree.bounds_max, b.tree.depth));
+    assert_eq!(a.origin, b.origin);
+}
+
+/// A scene 1e5 away loads into its local frame; the `.kdc` keeps the frame's origin, and the
+/// camera, given in world space, sees the same image from the file as from the scene.
+#[test]
+fn a_far_scene_keeps_its_local_frame_through_a_kdc() {
+    let toml = tmp("far.toml");
+    let obj = repo("scenes/cornell-box.obj");
+    std::fs::write(
+        &toml,
+        format!(
+            "[camera]\neye = [100000.278, 100000.273, 100000.8]\ntarget = [100000.278, 100000.273, 99999.72]\nwidth = 16\nheight = 16\n\n[render]\nspp = 4\nbounces = 2\n\n[[mesh]]\nfile = {:?}\ntranslate = [100000, 100000, 100000]\n",
+            obj.to_string_lossy()
+        ),
+    )
+    .unwrap();
+    let loaded = kdtrace::load(&toml, BuildSettings::default()).unwrap();
+    let origin = loaded.compiled.origin;
+    assert!(origin.min_element() > 99_999.0, "not moved into a local frame: origin {origin}");
+    assert!(loaded.compiled.tree.bounds_max.abs().max_element() < 1.0, "local bounds {:?}", loaded.compiled.tree.bounds_max);
+    let path = tmp("far.kdc");
+    kdc::write(&path, &loaded.compiled, &BuildSettings::default(), &loaded.settings).unwrap();
+    let back = kdc::read(&path).unwrap();
+    assert_same(&loaded.compiled, &back.compiled);
+    let (lo, hi) = loaded.compiled.world_bounds();
+    let s = loaded.settings.resolve(lo, hi).unwrap();
+    let none = |_: u64, _: u64| {};
+    let a = kdtrace::cpu::render(&loaded.compiled, &s, &none).unwrap();
+    let b = kdtrace::cpu::render(&back.compiled, &s, &none).unwrap();
+    assert_eq!(a.sum, b.sum);
+    // The camera sees the box: most pixels are lit.
+    let lit = a.mean().iter().filter(|p| p[0] + p[1] + p[2] > 0.01).count();
+    assert!(lit > 16 * 16 / 2, "only {lit} of 256 pixels lit: the camera missed the box");
 }
 
 fn cornell_bytes() -> (Vec<u8>, kdtrace::Loaded) {

@@ -83,6 +83,7 @@ fn cases() -> Vec<Case> {
         toml_case("absurd bounces", &format!("[render]\nbounces = 5000\n{mesh}"), &["s.toml:2:11", "bounces 5000"]),
         toml_case("negative seed", &format!("[render]\nseed = -1\n{mesh}"), &["s.toml:2:8"]),
         toml_case("non-positive time limit", &format!("[render]\ntime_limit = -1.0\n{mesh}"), &["s.toml:2:14", "time limit"]),
+        toml_case("unknown sampler", &format!("[render]\nsampler = \"halton\"\n{mesh}"), &["s.toml:2:11", "halton", "sobol"]),
         toml_case("NaN eye", &format!("[camera]\neye = [nan, 0, 0]\n{mesh}"), &["s.toml:2:7", "not finite"]),
         toml_case("1e39 target", &format!("[camera]\ntarget = [0, 1e39, 0]\n{mesh}"), &["s.toml:2:10", "not finite or beyond"]),
         toml_case("eye with two components", &format!("[camera]\neye = [1, 2]\n{mesh}"), &["s.toml:2:7"]),

@@ -41,14 +41,9 @@ pub fn render(c: &Compiled, s: &RenderSettings, progress: Progress) -> Result<Re
             .for_each(|(y, ((sum, sum_sq), primary))| {
                 for x in 0..w as usize {
                     let before = sum[x].w;
-                    let pass = render_pixel(&scene, &params, x as u32, y as u32, sum[x], sum_sq[x]);
-                    if pass.sum.w > before {
-                        eprintln!("warning: pixel ({x}, {y}): {} non-finite or negative sample(s) zeroed", pass.sum.w - before);
-                    }
-                    sum[x] = pass.sum;
-                    sum_sq[x] = pass.sum_sq;
-                    if start == 0 {
-                        primary[x] = pass.primary;
+                    render_pixel(&scene, &params, x as u32, y as u32, &mut sum[x], &mut sum_sq[x], &mut primary[x]);
+                    if sum[x].w > before {
+                        eprintln!("warning: pixel ({x}, {y}): {} non-finite or negative sample(s) zeroed", sum[x].w - before);
                     }
                 }
                 let k = w as u64 * count as u64;

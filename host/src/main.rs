@@ -117,31 +117,17 @@ struct BuildArgs {
 
 impl BuildArgs {
     fn settings(&self) -> Result<kdbuild::BuildSettings> {
-        let mut s = kdbuild::BuildSettings::default();
-        if let Some(b) = self.builder {
-            s.builder = b;
-        }
-        if let Some(x) = self.traversal_cost {
-            s.traversal_cost = x;
-        }
-        if let Some(x) = self.intersection_cost {
-            s.intersection_cost = x;
-        }
-        if let Some(x) = self.empty_factor {
-            s.empty_factor = x;
-        }
-        if let Some(x) = self.max_depth {
-            s.max_depth = x;
-        }
-        if let Some(x) = self.leaf_size {
-            s.leaf_size = x;
-        }
-        if let Some(x) = self.bad_refines {
-            s.bad_refines = x;
-        }
-        if let Some(x) = self.max_refs_factor {
-            s.max_refs_factor = x;
-        }
+        let d = kdbuild::BuildSettings::default();
+        let s = kdbuild::BuildSettings {
+            builder: self.builder.unwrap_or(d.builder),
+            traversal_cost: self.traversal_cost.unwrap_or(d.traversal_cost),
+            intersection_cost: self.intersection_cost.unwrap_or(d.intersection_cost),
+            empty_factor: self.empty_factor.unwrap_or(d.empty_factor),
+            max_depth: self.max_depth.unwrap_or(d.max_depth),
+            leaf_size: self.leaf_size.unwrap_or(d.leaf_size),
+            bad_refines: self.bad_refines.unwrap_or(d.bad_refines),
+            max_refs_factor: self.max_refs_factor.unwrap_or(d.max_refs_factor),
+        };
         s.check()?;
         Ok(s)
     }

@@ -37,12 +37,7 @@ pub fn render_pass(
     }
     let scene = SceneView::new(params, nodes, indices, triangles, info, materials, lights);
     let pixel = (id.y * params.width + id.x) as usize;
-    let pass = render_pixel(&scene, params, id.x, id.y, accum[pixel], accum_sq[pixel]);
-    accum[pixel] = pass.sum;
-    accum_sq[pixel] = pass.sum_sq;
-    if params.sample_start == 0 {
-        primary[pixel] = pass.primary;
-    }
+    render_pixel(&scene, params, id.x, id.y, &mut accum[pixel], &mut accum_sq[pixel], &mut primary[pixel]);
 }
 
 /// Persistent threads (Aila & Laine 2009): a fixed grid of workgroups, each taking batches of
@@ -88,12 +83,8 @@ pub fn render_persistent(
             let pixel = base + lane;
             if pixel < total {
                 let (x, y) = (pixel % params.width, pixel / params.width);
-                let pass = render_pixel(&scene, params, x, y, accum[pixel as usize], accum_sq[pixel as usize]);
-                accum[pixel as usize] = pass.sum;
-                accum_sq[pixel as usize] = pass.sum_sq;
-                if params.sample_start == 0 {
-                    primary[pixel as usize] = pass.primary;
-                }
+                let i = pixel as usize;
+                render_pixel(&scene, params, x, y, &mut accum[i], &mut accum_sq[i], &mut primary[i]);
             }
         }
     }

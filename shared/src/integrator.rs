@@ -165,34 +165,27 @@ fn shade_vertex(scene: &SceneView, p: &RenderParams, path: &mut Path, rng: &mut 
     true
 }
 
-/// A pixel's running sums after one pass: `sum.xyz` radiance and `sum.w` the number of samples
-/// that were non-finite or negative and were zeroed; `sum_sq.xyz` the squared radiance, for the
-/// per-pixel variance (`sum_sq.w` unused).
-#[derive(Clone, Copy)]
-pub struct PixelPass {
-    pub sum: Vec4,
-    pub sum_sq: Vec4,
-    /// The primary hit of sample 0 when this pass contains it, else `NO_HIT`.
-    pub primary: u32,
-}
-
-/// Adds samples `[sample_start, sample_start + sample_count)` of pixel (x, y) to the running sums,
-/// in sample order, so every device sums the same numbers in the same order.
-pub fn render_pixel(scene: &SceneView, p: &RenderParams, x: u32, y: u32, sum: Vec4, sum_sq: Vec4) -> PixelPass {
-    let mut sum = sum;
-    let mut sum_sq = sum_sq;
-    let mut primary = NO_HIT;
+/// Adds samples `[sample_start, sample_start + sample_count)` of pixel (x, y) to its running
+/// sums, in sample order, so every device sums the same numbers in the same order: `sum.xyz`
+/// radiance and `sum.w` the number of samples that were non-finite or negative and were zeroed;
+/// `sum_sq.xyz` the squared radiance, for the per-pixel variance (`sum_sq.w` unused). When the
+/// pass holds sample 0, `primary` gets the triangle its camera ray hit first. What every renderer
+/// (the CPU rows, both GPU kernels) does per pixel and pass.
+pub fn render_pixel(scene: &SceneView, p: &RenderParams, x: u32, y: u32, sum: &mut Vec4, sum_sq: &mut Vec4, primary: &mut u32) {
+    let mut acc = *sum;
+    let mut acc_sq = *sum_sq;
     let mut s = p.sample_start;
     let end = p.sample_start + p.sample_count;
     while s < end {
         let r = trace_sample(scene, p, x, y, s);
         if s == 0 {
-            primary = r.primary;
+            *primary = r.primary;
         }
         let (l, bad) = sanitize_radiance(r.radiance);
-        sum += Vec4::new(l.x, l.y, l.z, if bad { 1.0 } else { 0.0 });
-        sum_sq += Vec4::new(l.x * l.x, l.y * l.y, l.z * l.z, 0.0);
+        acc += Vec4::new(l.x, l.y, l.z, if bad { 1.0 } else { 0.0 });
+        acc_sq += Vec4::new(l.x * l.x, l.y * l.y, l.z * l.z, 0.0);
         s += 1;
     }
-    PixelPass { sum, sum_sq, primary }
+    *sum = acc;
+    *sum_sq = acc_sq;
 }

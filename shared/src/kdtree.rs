@@ -118,6 +118,13 @@ pub fn clip_to_bounds(lo: Vec3, hi: Vec3, origin: Vec3, dir: Vec3, inv: Vec3, t_
     Some((t0, t1))
 }
 
+/// Whether a node the ray enters at `t_min` may still hold a hit closer than `best_t`: the cull
+/// rule of both traversals (entry lowered by `T_SLACK`, see the module docs).
+#[inline]
+pub(crate) fn may_hold_closer(t_min: f32, best_t: f32) -> bool {
+    t_min * (1.0 - T_SLACK) <= best_t
+}
+
 /// What every traversal of a ray starts from: the direction with denormals flushed, its
 /// per-axis reciprocal, and the interval in which it crosses the scene box.
 #[derive(Clone, Copy)]
@@ -255,7 +262,7 @@ pub(crate) fn traverse(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32, a
         while (sp > 0) & !found & !answered {
             sp -= 1;
             let e = stack[sp];
-            if e.t_min * (1.0 - T_SLACK) <= best.t {
+            if may_hold_closer(e.t_min, best.t) {
                 node = e.node;
                 t0 = e.t_min;
                 t1 = e.t_max;

@@ -69,25 +69,32 @@ impl Sampler {
     /// The three uniforms of an explicit set; `next_3d` walks the sets.
     #[inline]
     pub fn at(kind: u32, pixel: u32, sample: u32, set: u32, seed: u32) -> [f32; 3] {
-        Self::point(kind, pixel, sample, sample.reverse_bits(), set, seed)
+        Self { set, ..Self::new(kind, pixel, sample, seed) }.next_3d()
     }
 
+    /// The current set's Sobol seeds: one shuffles the sample index, three scramble the
+    /// coordinates (`sobol::scrambled_sobol3`).
     #[inline]
-    fn point(kind: u32, pixel: u32, sample: u32, reversed_sample: u32, set: u32, seed: u32) -> [f32; 3] {
-        let bits = if kind == SAMPLER_SOBOL {
-            crate::sobol::scrambled_sobol3(reversed_sample, pcg4d(pixel, set, seed, SOBOL_KEY))
-        } else {
-            let h = pcg4d(pixel, sample, set, seed);
-            [h[0], h[1], h[2]]
-        };
-        [u32_to_unit_f32(bits[0]), u32_to_unit_f32(bits[1]), u32_to_unit_f32(bits[2])]
+    fn sobol_seeds(&self) -> [u32; 4] {
+        pcg4d(self.pixel, self.set, self.seed, SOBOL_KEY)
+    }
+
+    /// The current set's independent uniforms, as bits.
+    #[inline]
+    fn independent_bits(&self) -> [u32; 4] {
+        pcg4d(self.pixel, self.sample, self.set, self.seed)
     }
 
     #[inline]
     pub fn next_3d(&mut self) -> [f32; 3] {
-        let v = Self::point(self.kind, self.pixel, self.sample, self.reversed_sample, self.set, self.seed);
+        let bits = if self.kind == SAMPLER_SOBOL {
+            crate::sobol::scrambled_sobol3(self.reversed_sample, self.sobol_seeds())
+        } else {
+            let h = self.independent_bits();
+            [h[0], h[1], h[2]]
+        };
         self.set += 1;
-        v
+        [u32_to_unit_f32(bits[0]), u32_to_unit_f32(bits[1]), u32_to_unit_f32(bits[2])]
     }
 
     /// The first two dimensions of the next set (the most evenly spread pair under Sobol):
@@ -95,9 +102,9 @@ impl Sampler {
     #[inline]
     pub fn next_2d(&mut self) -> (f32, f32) {
         let bits = if self.kind == SAMPLER_SOBOL {
-            crate::sobol::scrambled_sobol2(self.reversed_sample, pcg4d(self.pixel, self.set, self.seed, SOBOL_KEY))
+            crate::sobol::scrambled_sobol2(self.reversed_sample, self.sobol_seeds())
         } else {
-            let h = pcg4d(self.pixel, self.sample, self.set, self.seed);
+            let h = self.independent_bits();
             [h[0], h[1]]
         };
         self.set += 1;

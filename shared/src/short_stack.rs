@@ -16,8 +16,7 @@
 //!
 //! A small stack is what makes a k-d traversal fit in a GPU thread's registers.
 use crate::glam::Vec3;
-use crate::kdtree::{descend, ray_start, test_leaf, Hit, StackEntry};
-use crate::numerics::T_SLACK;
+use crate::kdtree::{descend, may_hold_closer, ray_start, test_leaf, Hit, StackEntry};
 use crate::scene::SceneView;
 use crate::triangle::RayShear;
 
@@ -97,7 +96,7 @@ pub(crate) fn traverse<const S: usize>(scene: &SceneView, origin: Vec3, dir: Vec
             top = if top == 0 { S - 1 } else { top - 1 };
             count -= 1;
             let e = stack[top];
-            if e.t_min * (1.0 - T_SLACK) <= best.t {
+            if may_hold_closer(e.t_min, best.t) {
                 node = e.node;
                 t0 = e.t_min;
                 t1 = e.t_max;
@@ -105,7 +104,7 @@ pub(crate) fn traverse<const S: usize>(scene: &SceneView, origin: Vec3, dir: Vec
             }
         }
         if !found & !done {
-            let more = dropped & (drop_min * (1.0 - T_SLACK) <= best.t);
+            let more = dropped & may_hold_closer(drop_min, best.t);
             if more & (drop_min > restart_at) {
                 // Restart from the root at the nearest dropped entry: everything before it
                 // has been visited.

@@ -408,10 +408,11 @@ impl Sah<'_> {
         let Node { triangles, events, voxel, depth, bad_refines: _, budget } = node;
         let (below_voxel, above_voxel) = voxel.split(plane.axis, plane.pos);
         let depth = depth + 1;
-        // The same shares as `split` gives, computed the same way.
+        // The same share as `split` gives, computed the same way. The empty child is a leaf
+        // before its budget is read (no references), so it gets none.
         let refs = triangles.len().max(1) as f64;
         let full = budget * triangles.len() as f64 / refs;
-        let empty = budget * 0.0 / refs;
+        let empty = 0.0;
         let full_node = |voxel| Node { triangles, events, voxel, depth, bad_refines, budget: full };
         let empty_node = |voxel| Node { triangles: Vec::new(), events: Default::default(), voxel, depth, bad_refines, budget: empty };
         if plane.below == 0 {

@@ -45,7 +45,8 @@ fn assert_same_scene(a: &Scene, b: &Scene, what: &str) {
 }
 
 fn resolved(l: &Loaded) -> kdtrace::render::RenderSettings {
-    l.settings.resolve(l.compiled.tree.bounds_min, l.compiled.tree.bounds_max).unwrap()
+    let (lo, hi) = l.compiled.world_bounds();
+    l.settings.resolve(lo, hi).unwrap()
 }
 
 /// Every scene file in scenes/.

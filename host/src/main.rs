@@ -252,7 +252,8 @@ fn flag_settings(a: &ImageArgs) -> SceneSettings {
 /// Flags over the scene's own settings over the defaults.
 fn settings(a: &ImageArgs, loaded: &Loaded) -> Result<RenderSettings> {
     let c = &loaded.compiled;
-    let mut s = loaded.settings.overridden_by(&flag_settings(a)).resolve(c.world_bounds().0, c.world_bounds().1)?;
+    let (lo, hi) = c.world_bounds();
+    let mut s = loaded.settings.overridden_by(&flag_settings(a)).resolve(lo, hi)?;
     s.traversal = a.traversal;
     s.dispatch = a.dispatch;
     s.aov = a.aov;
@@ -478,7 +479,8 @@ fn export(e: ExportArgs) -> Result<ExitCode> {
     // Loading checks every mesh and resolves the camera framing that the file may leave open.
     let loaded = load(&e.scene)?;
     let c = &loaded.compiled;
-    let resolved = loaded.settings.resolve(c.world_bounds().0, c.world_bounds().1)?;
+    let (lo, hi) = c.world_bounds();
+    let resolved = loaded.settings.resolve(lo, hi)?;
     let mut file = scene_file::with_settings(file, &SceneSettings::pinned(&resolved, loaded.settings.time_limit_s))?;
     scene_file::rebase_meshes(&mut file, &e.scene, &e.out)?;
     let comment = format!("kdtrace scene file, written by `kdtrace export` from {}.\nSchema: README.md, \"Scene files\".", e.scene.display());

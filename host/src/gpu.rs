@@ -6,7 +6,7 @@
 use crate::render::{Compiled, Dispatch, Progress, RenderSettings, Rendered};
 use anyhow::{anyhow, bail, Context, Result};
 use shared::glam::Vec4;
-use shared::layout::{RayQuery, RayResult, RenderParams};
+use shared::layout::{RayQuery, RayResult, RenderParams, TriBlock};
 use std::sync::OnceLock;
 use wgpu::util::DeviceExt;
 
@@ -64,8 +64,9 @@ mod binding {
     pub const QUEUE: u32 = 11;
     /// Running sums of squared radiance (per-pixel variance).
     pub const ACCUM_SQ: u32 = 12;
+    // 13: the CPU leaf test's triangle blocks (read-only; a placeholder on the GPU).
     /// Bindings in all: the uniform parameters, then storage buffers.
-    pub const COUNT: u32 = 13;
+    pub const COUNT: u32 = 14;
     /// Storage bindings the kernel writes; every other storage binding is read-only.
     pub const WRITABLE: [u32; 5] = [ACCUM, PRIMARY, RESULTS, QUEUE, ACCUM_SQ];
 }
@@ -87,7 +88,7 @@ fn bind_group_layout_entries() -> Vec<wgpu::BindGroupLayoutEntry> {
         .collect()
 }
 
-/// The scene's buffers on the device (bindings 0 to 6).
+/// The scene's buffers on the device (bindings 0 to 6 and 13).
 struct SceneBuffers {
     params: wgpu::Buffer,
     nodes: wgpu::Buffer,
@@ -96,6 +97,7 @@ struct SceneBuffers {
     info: wgpu::Buffer,
     materials: wgpu::Buffer,
     lights: wgpu::Buffer,
+    blocks: wgpu::Buffer,
 }
 
 fn instance() -> wgpu::Instance {
@@ -226,13 +228,16 @@ impl Gpu {
             info: self.storage("info", bytemuck::cast_slice(&c.scene.info)),
             materials: self.storage("materials", bytemuck::cast_slice(&c.scene.materials)),
             lights: self.storage("lights", bytemuck::cast_slice(&c.lights)),
+            // The GPU's leaf test reads `triangles` one by one (`shared::kdtree::test_leaf`):
+            // the blocks binding only holds a placeholder.
+            blocks: self.storage("blocks", bytemuck::bytes_of(&TriBlock::default())),
         })
     }
 
     /// The bind group of all bindings: the scene's, then the outputs and ray buffers.
     #[allow(clippy::too_many_arguments)]
     fn bind(&self, s: &SceneBuffers, accum: &wgpu::Buffer, primary: &wgpu::Buffer, rays: &wgpu::Buffer, results: &wgpu::Buffer, queue: &wgpu::Buffer, accum_sq: &wgpu::Buffer) -> wgpu::BindGroup {
-        let buffers = [&s.params, &s.nodes, &s.indices, &s.triangles, &s.info, &s.materials, &s.lights, accum, primary, rays, results, queue, accum_sq];
+        let buffers = [&s.params, &s.nodes, &s.indices, &s.triangles, &s.info, &s.materials, &s.lights, accum, primary, rays, results, queue, accum_sq, &s.blocks];
         debug_assert_eq!(buffers.len() as u32, binding::COUNT);
         let entries: Vec<wgpu::BindGroupEntry> = buffers.iter().enumerate().map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() }).collect();
         self.device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some("scene"), layout: &self.bind_layout, entries: &entries })

@@ -98,6 +98,9 @@ struct BuildArgs {
     /// SAH cost of a triangle test (K_I).
     #[arg(long)]
     intersection_cost: Option<f32>,
+    /// Triangles one leaf test covers in the SAH (1: every triangle counts).
+    #[arg(long)]
+    leaf_block: Option<u32>,
     /// SAH factor λ for splits with an empty side.
     #[arg(long)]
     empty_factor: Option<f32>,
@@ -122,6 +125,7 @@ impl BuildArgs {
             builder: self.builder.unwrap_or(d.builder),
             traversal_cost: self.traversal_cost.unwrap_or(d.traversal_cost),
             intersection_cost: self.intersection_cost.unwrap_or(d.intersection_cost),
+            leaf_block: self.leaf_block.unwrap_or(d.leaf_block),
             empty_factor: self.empty_factor.unwrap_or(d.empty_factor),
             max_depth: self.max_depth.unwrap_or(d.max_depth),
             leaf_size: self.leaf_size.unwrap_or(d.leaf_size),

@@ -6,7 +6,8 @@ use crate::local_frame::{point_to_local, point_to_world};
 use crate::scene::Scene;
 use anyhow::{bail, Result};
 use shared::glam::{Vec3, Vec4};
-use shared::layout::{Light, RenderParams, AOV_COST, AOV_RADIANCE, TRAVERSAL_FULL_STACK, TRAVERSAL_SHORT_STACK};
+use rayon::prelude::*;
+use shared::layout::{Light, RenderParams, TriBlock, Triangle, AOV_COST, AOV_RADIANCE, BLOCK_WIDTH, TRAVERSAL_FULL_STACK, TRAVERSAL_SHORT_STACK};
 use shared::rng::{SAMPLER_INDEPENDENT, SAMPLER_SOBOL};
 use shared::scene::SceneView;
 
@@ -148,6 +149,9 @@ pub struct Compiled {
     pub tree: KdTree,
     /// The light table padded to at least one entry (GPU buffers cannot be empty).
     pub lights: Vec<Light>,
+    /// The triangles of `tree.indices` in blocks of four, for the SIMD leaf test
+    /// (`shared::layout::TriBlock`); derived from the tree, never stored.
+    pub blocks: Vec<TriBlock>,
     /// World position of the scene's coordinate origin (`local_frame`): the scene and its tree
     /// are stored relative to it, cameras are given in world space.
     pub origin: Vec3,
@@ -159,7 +163,8 @@ impl Compiled {
         if lights.is_empty() {
             lights.push(Light::default());
         }
-        Self { scene, tree, lights, origin: Vec3::ZERO }
+        let blocks = leaf_blocks(&tree.indices, &scene.triangles);
+        Self { scene, tree, lights, blocks, origin: Vec3::ZERO }
     }
 
     /// The scene's bounds in world space (what a default camera frames).
@@ -214,8 +219,29 @@ impl Compiled {
     }
 
     pub fn view<'a>(&'a self, params: &RenderParams) -> SceneView<'a> {
-        SceneView::new(params, &self.tree.nodes, &self.tree.indices, &self.scene.triangles, &self.scene.info, &self.scene.materials, &self.lights)
+        SceneView::new(params, &self.tree.nodes, &self.tree.indices, &self.blocks, &self.scene.triangles, &self.scene.info, &self.scene.materials, &self.lights)
     }
+}
+
+/// Block `k` holds the triangles of `indices[4k .. 4k + 4]`, one per lane; lanes past the end
+/// stay zero (a degenerate triangle; the leaf test masks them anyway). At least one block, since
+/// a GPU buffer cannot be empty.
+pub fn leaf_blocks(indices: &[u32], triangles: &[Triangle]) -> Vec<TriBlock> {
+    let width = BLOCK_WIDTH as usize;
+    let mut blocks: Vec<TriBlock> = indices
+        .par_chunks(width)
+        .map(|ids| {
+            let mut b = TriBlock::default();
+            for (lane, &id) in ids.iter().enumerate() {
+                b.set_lane(lane, &triangles[id as usize]);
+            }
+            b
+        })
+        .collect();
+    if blocks.is_empty() {
+        blocks.push(TriBlock::default());
+    }
+    blocks
 }
 
 /// An accumulated image: per pixel the radiance sum in `xyz` and the count of zeroed

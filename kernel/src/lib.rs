@@ -6,7 +6,7 @@
 
 use shared::glam::{UVec3, Vec4};
 use shared::integrator::render_pixel;
-use shared::layout::{KdNode, Light, Material, RayQuery, RayResult, RenderParams, Triangle, TriangleInfo};
+use shared::layout::{KdNode, Light, Material, RayQuery, RayResult, RenderParams, TriBlock, Triangle, TriangleInfo};
 use shared::raycast::cast_ray;
 use shared::scene::SceneView;
 use spirv_std::arch::{atomic_i_add, workgroup_memory_barrier_with_group_sync};
@@ -28,6 +28,7 @@ pub fn render_pass(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] info: &[TriangleInfo],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] materials: &[Material],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] lights: &[Light],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 13)] blocks: &[TriBlock],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] accum: &mut [Vec4],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] primary: &mut [u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 12)] accum_sq: &mut [Vec4],
@@ -35,7 +36,7 @@ pub fn render_pass(
     if (id.x >= params.width) | (id.y >= params.height) {
         return;
     }
-    let scene = SceneView::new(params, nodes, indices, triangles, info, materials, lights);
+    let scene = SceneView::new(params, nodes, indices, blocks, triangles, info, materials, lights);
     let pixel = (id.y * params.width + id.x) as usize;
     render_pixel(&scene, params, id.x, id.y, &mut accum[pixel], &mut accum_sq[pixel], &mut primary[pixel]);
 }
@@ -58,12 +59,13 @@ pub fn render_persistent(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] info: &[TriangleInfo],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] materials: &[Material],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] lights: &[Light],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 13)] blocks: &[TriBlock],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] accum: &mut [Vec4],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] primary: &mut [u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 11)] queue: &mut [u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 12)] accum_sq: &mut [Vec4],
 ) {
-    let scene = SceneView::new(params, nodes, indices, triangles, info, materials, lights);
+    let scene = SceneView::new(params, nodes, indices, blocks, triangles, info, materials, lights);
     let total = params.width * params.height;
     let mut running = true;
     let mut round = 0;
@@ -102,6 +104,7 @@ pub fn cast_rays(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] info: &[TriangleInfo],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] materials: &[Material],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] lights: &[Light],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 13)] blocks: &[TriBlock],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 9)] rays: &[RayQuery],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 10)] results: &mut [RayResult],
 ) {
@@ -109,6 +112,6 @@ pub fn cast_rays(
     if i >= rays.len() {
         return;
     }
-    let scene = SceneView::new(params, nodes, indices, triangles, info, materials, lights);
+    let scene = SceneView::new(params, nodes, indices, blocks, triangles, info, materials, lights);
     results[i] = cast_ray(&scene, &rays[i]);
 }

@@ -9,10 +9,10 @@
 //! Termination is by culling, not by leaf exit: a node popped from the stack is skipped only when
 //! its entry distance, lowered by `T_SLACK`, exceeds the closest hit so far. Together with a
 //! conservative triangle placement by the builder this returns exactly the hit that testing every
-//! triangle returns (`intersect_brute_force`), bit for bit, because both call the same
-//! `RayShear::intersect`.
+//! triangle returns (`intersect_brute_force`), bit for bit, because every triangle test performs
+//! the operations of `RayShear::intersect` (the CPU's four-lane `intersect4` lane by lane).
 use crate::glam::Vec3;
-use crate::layout::{KdNode, KD_MAX_DEPTH, NO_HIT};
+use crate::layout::{KdNode, BLOCK_WIDTH, KD_MAX_DEPTH, NO_HIT};
 use crate::numerics::{gamma, is_finite3, T_SLACK};
 use crate::scene::SceneView;
 use crate::triangle::RayShear;
@@ -68,12 +68,15 @@ fn flush(x: f32) -> f32 {
     }
 }
 
+/// `1/x`, or 0 for `x == 0`: the division runs either way and the zero is selected after, so
+/// a CPU does not branch on the direction.
 #[inline]
 fn recip(x: f32) -> f32 {
+    let r = 1.0 / x;
     if x == 0.0 {
         0.0
     } else {
-        1.0 / x
+        r
     }
 }
 
@@ -85,37 +88,34 @@ pub(crate) fn safe_reciprocal(d: Vec3) -> Vec3 {
 
 /// Slab test against the scene box; `None` when the ray misses it within (t_min, t_max).
 /// The exit distance is widened by 2γ(3) (pbrt-v4 `Bounds3::IntersectP`) so a triangle lying on
-/// the box face is not lost to rounding.
+/// the box face is not lost to rounding. An axis the ray runs parallel to (`d == 0`, whose slab
+/// distances are meaningless) only asks whether the origin lies inside its slab; every axis is
+/// evaluated and the verdict taken once, which leaves the direction's signs nothing to branch on.
 #[inline]
 pub fn clip_to_bounds(lo: Vec3, hi: Vec3, origin: Vec3, dir: Vec3, inv: Vec3, t_min: f32, t_max: f32) -> Option<(f32, f32)> {
     let mut t0 = t_min;
     let mut t1 = t_max;
+    let mut outside = false;
     let mut a = 0;
     while a < 3 {
         let o = axis(origin, a);
-        let d = axis(dir, a);
         let (l, h) = (axis(lo, a), axis(hi, a));
-        if d == 0.0 {
-            if (o < l) | (o > h) {
-                return None;
-            }
-        } else {
-            let i = axis(inv, a);
-            let mut near = (l - o) * i;
-            let mut far = (h - o) * i;
-            if near > far {
-                core::mem::swap(&mut near, &mut far);
-            }
-            far *= 1.0 + 2.0 * gamma(3);
-            t0 = if near > t0 { near } else { t0 };
-            t1 = if far < t1 { far } else { t1 };
-            if t0 > t1 {
-                return None;
-            }
-        }
+        let i = axis(inv, a);
+        let parallel = axis(dir, a) == 0.0;
+        let t_lo = (l - o) * i;
+        let t_hi = (h - o) * i;
+        let near = if t_lo > t_hi { t_hi } else { t_lo };
+        let far = if t_lo > t_hi { t_lo } else { t_hi } * (1.0 + 2.0 * gamma(3));
+        t0 = if !parallel & (near > t0) { near } else { t0 };
+        t1 = if !parallel & (far < t1) { far } else { t1 };
+        outside |= parallel & ((o < l) | (o > h));
         a += 1;
     }
-    Some((t0, t1))
+    if outside | (t0 > t1) {
+        None
+    } else {
+        Some((t0, t1))
+    }
 }
 
 /// Whether a node the ray enters at `t_min` may still hold a hit closer than `best_t`: the cull
@@ -149,23 +149,61 @@ pub(crate) fn ray_start(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32) 
     Some(RayStart { dir, inv, t_enter, t_exit })
 }
 
-/// Tests the triangles of leaf `n` against the ray, narrowing `best`; counts the tests. Returns
-/// whether an any-hit query (`any_hit`) is answered. Leaf intervals do not clip the test: a hit
+/// Tests the triangles of leaf `n` against the ray, narrowing `best`; counts the leaf's
+/// triangles as tested. Returns whether an any-hit query (`any_hit`) is answered, by the first
+/// triangle of the leaf's run that the ray hits. Leaf intervals do not clip the test: a hit
 /// anywhere in (0, best.t) counts, which is what makes the result equal brute force.
+///
+/// A CPU tests four triangles at a time in SIMD lanes (`test_leaf_blocks`); a GPU thread would
+/// execute the four lanes one after another, so it tests the leaf's triangles one by one
+/// (`test_leaf_each`). Both return the same hit and the same counts (tested against each other).
 #[inline]
 pub(crate) fn test_leaf(scene: &SceneView, shear: &RayShear, n: KdNode, best: &mut Hit, tests: &mut u32, any_hit: bool) -> bool {
+    #[cfg(target_arch = "spirv")]
+    return test_leaf_each(scene, shear, n, best, tests, any_hit);
+    #[cfg(not(target_arch = "spirv"))]
+    return test_leaf_blocks(scene, shear, n, best, tests, any_hit);
+}
+
+/// `test_leaf` one triangle at a time, in the order of the leaf's run.
+#[inline]
+pub fn test_leaf_each(scene: &SceneView, shear: &RayShear, n: KdNode, best: &mut Hit, tests: &mut u32, any_hit: bool) -> bool {
     let start = n.first_index();
-    let count = n.count();
-    let mut i = 0;
+    let end = start + n.count();
+    *tests += n.count();
+    let mut i = start;
     let mut done = false;
-    while (i < count) & !done {
-        let id = scene.indices[(start + i) as usize];
-        *tests += 1;
+    while (i < end) & !done {
+        let id = scene.indices[i as usize];
         if let Some(h) = shear.intersect(&scene.triangles[id as usize], 0.0, best.t) {
             *best = Hit { t: h.t, triangle: id, u: h.u, v: h.v, w: h.w, nodes: 0, tests: 0 };
             done = any_hit;
         }
         i += 1;
+    }
+    done
+}
+
+/// `test_leaf` four triangles at a time (`TriBlock`, `RayShear::intersect4`). Lanes outside the
+/// leaf's run of the index list are masked, so a leaf that does not start at a multiple of four
+/// (a tree from elsewhere) is tested correctly too, only with one more block.
+#[inline]
+pub fn test_leaf_blocks(scene: &SceneView, shear: &RayShear, n: KdNode, best: &mut Hit, tests: &mut u32, any_hit: bool) -> bool {
+    let start = n.first_index();
+    let end = start + n.count();
+    *tests += n.count();
+    let mut base = if start == end { end } else { start & !(BLOCK_WIDTH - 1) };
+    let mut done = false;
+    while (base < end) & !done {
+        let first = if start > base { start - base } else { 0 };
+        let past = if end - base < BLOCK_WIDTH { end - base } else { BLOCK_WIDTH };
+        let lanes = ((1u32 << past) - 1) & !((1u32 << first) - 1);
+        if let Some((lane, h)) = shear.intersect4(&scene.blocks[(base / BLOCK_WIDTH) as usize], lanes, 0.0, best.t, any_hit) {
+            let id = scene.indices[(base + lane) as usize];
+            *best = Hit { t: h.t, triangle: id, u: h.u, v: h.v, w: h.w, nodes: 0, tests: 0 };
+            done = any_hit;
+        }
+        base += BLOCK_WIDTH;
     }
     done
 }

@@ -15,6 +15,37 @@ pub struct Triangle {
     pub v2: Vec4,
 }
 
+/// Triangles tested together by the leaf test (`triangle::RayShear::intersect4`).
+pub const BLOCK_WIDTH: u32 = 4;
+
+/// Four consecutive entries of the leaf index list, transposed so that one SIMD lane holds one
+/// triangle: `v[3·j + a]` holds axis `a` (0 = x) of vertex `j` for the four triangles. Block `k`
+/// holds the triangles of index entries `4k .. 4k + 4`; the builders start every leaf at a
+/// multiple of four, so a leaf of up to four triangles is one block test. Indexing by axis is
+/// an address offset, so the per-ray axis permutation of the watertight test needs no selects.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(not(target_arch = "spirv"), derive(bytemuck::Pod, bytemuck::Zeroable))]
+pub struct TriBlock {
+    pub v: [Vec4; 9],
+}
+
+impl TriBlock {
+    /// Puts `t` into lane `lane` (0..4).
+    #[cfg(not(target_arch = "spirv"))]
+    #[inline]
+    pub fn set_lane(&mut self, lane: usize, t: &Triangle) {
+        let verts = [t.v0, t.v1, t.v2];
+        let mut j = 0;
+        while j < 3 {
+            self.v[3 * j][lane] = verts[j].x;
+            self.v[3 * j + 1][lane] = verts[j].y;
+            self.v[3 * j + 2][lane] = verts[j].z;
+            j += 1;
+        }
+    }
+}
+
 /// Marks a triangle that is not a light.
 pub const NO_LIGHT: u32 = u32::MAX;
 /// Marks a ray that hit nothing.

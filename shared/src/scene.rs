@@ -1,6 +1,6 @@
 //! The scene as the integrator sees it: borrowed slices of the GPU buffers.
 use crate::glam::Vec3;
-use crate::layout::{KdNode, Light, Material, RenderParams, Triangle, TriangleInfo};
+use crate::layout::{KdNode, Light, Material, RenderParams, TriBlock, Triangle, TriangleInfo};
 use crate::vecmath::xyz;
 
 #[derive(Clone, Copy)]
@@ -8,6 +8,8 @@ pub struct SceneView<'a> {
     pub nodes: &'a [KdNode],
     /// Triangle ids of all leaves, each leaf a contiguous run.
     pub indices: &'a [u32],
+    /// The triangles of `indices` in blocks of four (`TriBlock`), what the leaf test reads.
+    pub blocks: &'a [TriBlock],
     pub triangles: &'a [Triangle],
     pub info: &'a [TriangleInfo],
     pub materials: &'a [Material],
@@ -25,6 +27,7 @@ impl<'a> SceneView<'a> {
         params: &RenderParams,
         nodes: &'a [KdNode],
         indices: &'a [u32],
+        blocks: &'a [TriBlock],
         triangles: &'a [Triangle],
         info: &'a [TriangleInfo],
         materials: &'a [Material],
@@ -33,6 +36,7 @@ impl<'a> SceneView<'a> {
         Self {
             nodes,
             indices,
+            blocks,
             triangles,
             info,
             materials,

@@ -6,8 +6,8 @@
 //! in both (negated), so a ray can never pass between them. A zero edge function counts as inside
 //! for both neighbours: rays through edges and vertices hit at least one triangle.
 //! No f64 fallback: not every GPU has `Float64`, and the zero case is already closed.
-use crate::glam::Vec3;
-use crate::layout::Triangle;
+use crate::glam::{Vec3, Vec4};
+use crate::layout::{TriBlock, Triangle};
 use crate::numerics::gamma;
 use crate::vecmath::{axis, xyz};
 
@@ -93,6 +93,60 @@ impl RayShear {
     }
 }
 
+/// One vertex of four triangles in the sheared frame: (x, y) after the shear and the distance
+/// coordinate before scaling, lane by lane the same operations as `RayShear::intersect`.
+#[inline]
+fn sheared4(r: &RayShear, b: &TriBlock, j: usize, o: (Vec4, Vec4, Vec4)) -> (Vec4, Vec4, Vec4) {
+    let kz = b.v[3 * j + r.kz as usize] - o.2;
+    let x = (b.v[3 * j + r.kx as usize] - o.0) - Vec4::splat(r.sx) * kz;
+    let y = (b.v[3 * j + r.ky as usize] - o.1) - Vec4::splat(r.sy) * kz;
+    (x, y, kz)
+}
+
+impl RayShear {
+    /// `intersect` on the four triangles of `b` at once, one per SIMD lane, considering only the
+    /// lanes set in the bitmask `lanes`. Returns the lane with the smallest distance in
+    /// (t_min, t_max), the lowest such lane on a tie, and its hit: exactly what testing the
+    /// lanes one after another with `intersect`, narrowing t_max, returns, since every lane
+    /// performs `intersect`'s operations in its order (IEEE single precision, no fused ops).
+    /// With `first`, the lowest lane that hits (what a one-by-one any-hit test stops at).
+    #[inline]
+    pub fn intersect4(&self, b: &TriBlock, lanes: u32, t_min: f32, t_max: f32, first: bool) -> Option<(u32, TriangleHit)> {
+        let o = (Vec4::splat(axis(self.origin, self.kx)), Vec4::splat(axis(self.origin, self.ky)), Vec4::splat(axis(self.origin, self.kz)));
+        let (ax, ay, akz) = sheared4(self, b, 0, o);
+        let (bx, by, bkz) = sheared4(self, b, 1, o);
+        let (cx, cy, ckz) = sheared4(self, b, 2, o);
+        let u = cx * by - cy * bx;
+        let v = ax * cy - ay * cx;
+        let w = bx * ay - by * ax;
+        let zero = Vec4::ZERO;
+        let any_neg = u.cmplt(zero) | v.cmplt(zero) | w.cmplt(zero);
+        let any_pos = u.cmpgt(zero) | v.cmpgt(zero) | w.cmpgt(zero);
+        let det = u + v + w;
+        let sz = Vec4::splat(self.sz);
+        let t_scaled = u * (sz * akz) + v * (sz * bkz) + w * (sz * ckz);
+        let t = t_scaled / det;
+        let ok = !(any_neg & any_pos) & det.cmpne(zero) & t.cmpgt(Vec4::splat(t_min)) & t.cmplt(Vec4::splat(t_max));
+        let mask = ok.bitmask() & lanes;
+        if mask == 0 {
+            return None;
+        }
+        let ts = t.to_array();
+        let mut lane = mask.trailing_zeros();
+        if !first {
+            let mut l = lane + 1;
+            while l < 4 {
+                if ((mask >> l) & 1 == 1) & (ts[l as usize] < ts[lane as usize]) {
+                    lane = l;
+                }
+                l += 1;
+            }
+        }
+        let i = lane as usize;
+        Some((lane, TriangleHit { t: ts[i], u: u.to_array()[i], v: v.to_array()[i], w: w.to_array()[i] }))
+    }
+}
+
 /// Geometric normal (v1 − v0) × (v2 − v0), unnormalised. It points to the front side: the side
 /// from which v0, v1, v2 appear counter-clockwise.
 #[inline]
@@ -172,6 +226,69 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// `intersect4` against `intersect` lane by lane: random and adversarial triangles (shared
+    /// edges, duplicates for exact ties, degenerate ones, the zero lane), every lane mask, both
+    /// selection rules; the hit must be bit for bit the one-by-one test's.
+    #[test]
+    fn four_lanes_equal_one_by_one() {
+        let mut state = 0x2545_f491u32;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            (state >> 8) as f32 / 16_777_216.0
+        };
+        let mut checked = 0;
+        for case in 0..4000 {
+            let mut r = || next() * 2.0 - 1.0;
+            let base = tri([r(), r(), r()], [r(), r(), r()], [r(), r(), r()]);
+            let mut lanes = [base; 4];
+            for (l, lane) in lanes.iter_mut().enumerate() {
+                *lane = match (case + l) % 5 {
+                    0 => base,
+                    1 => tri([r(), r(), r()], [r(), r(), r()], [r(), r(), r()]),
+                    2 => Triangle { v0: base.v1, v1: base.v0, v2: tri([r(), r(), r()], [0.0; 3], [0.0; 3]).v0 }, // shares an edge
+                    3 => tri([0.0; 3], [0.0; 3], [0.0; 3]),                        // degenerate
+                    _ => tri([r(), r(), 0.25], [r(), r(), 0.25], [r(), r(), 0.25]), // axis-aligned
+                };
+            }
+            if case % 2 == 0 {
+                lanes[(case / 2) % 4] = lanes[(case / 8 + 1) % 4]; // an exact tie, or a repeat
+            }
+            let mut block = TriBlock::default();
+            for (l, t) in lanes.iter().enumerate() {
+                block.set_lane(l, t);
+            }
+            let o = Vec3::new(r() * 3.0, r() * 3.0, r() * 3.0);
+            let target = Vec3::new(r() * 0.5, r() * 0.5, r() * 0.5);
+            let mut d = target - o;
+            if case % 7 == 0 {
+                d = Vec3::new(0.0, 0.0, if o.z > 0.0 { -1.0 } else { 1.0 }); // axis-parallel
+            }
+            let shear = RayShear::new(o, d);
+            let t_max = if case % 3 == 0 { f32::INFINITY } else { next() * 4.0 };
+            for mask in 0..16u32 {
+                for first in [false, true] {
+                    let mut want: Option<(u32, TriangleHit)> = None;
+                    for l in 0..4u32 {
+                        if (mask >> l) & 1 == 0 || (first && want.is_some()) {
+                            continue;
+                        }
+                        let limit = want.map_or(t_max, |(_, h)| h.t);
+                        if let Some(h) = shear.intersect(&lanes[l as usize], 0.0, limit) {
+                            want = Some((l, h));
+                        }
+                    }
+                    let got = shear.intersect4(&block, mask, 0.0, t_max, first);
+                    let key = |x: Option<(u32, TriangleHit)>| x.map(|(l, h)| (l, h.t.to_bits(), h.u.to_bits(), h.v.to_bits(), h.w.to_bits()));
+                    assert_eq!(key(got), key(want), "case {case} mask {mask:04b} first {first}");
+                    checked += want.is_some() as u32;
+                }
+            }
+        }
+        assert!(checked > 10_000, "too few hits to mean anything: {checked}");
     }
 
     #[test]

@@ -18,7 +18,7 @@ pub use validate::validate;
 
 use serde::{Deserialize, Serialize};
 use shared::glam::Vec3;
-use shared::layout::{KdNode, Triangle, KD_MAX_DEPTH};
+use shared::layout::{KdNode, Triangle, BLOCK_WIDTH, KD_MAX_DEPTH};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "lowercase")]
@@ -36,8 +36,12 @@ pub struct BuildSettings {
     pub builder: Builder,
     /// K_T, the cost of one traversal step (default 15).
     pub traversal_cost: f32,
-    /// K_I, the cost of one ray/triangle test (default 20).
+    /// K_I, the cost of one leaf test of up to `leaf_block` triangles (default 20).
     pub intersection_cost: f32,
+    /// Triangles one leaf test covers in the SAH (default 4, `shared::layout::BLOCK_WIDTH`: the
+    /// traversal tests a leaf's triangles four at a time in SIMD lanes, so a leaf of 1 to 4
+    /// costs one test). 1 counts every triangle, Wald & Havran's model.
+    pub leaf_block: u32,
     /// λ, the factor on the cost of a split with one empty side whose plane is not on the
     /// voxel's boundary (default 0.8: favour cutting off empty space).
     pub empty_factor: f32,
@@ -57,7 +61,7 @@ pub struct BuildSettings {
 
 impl Default for BuildSettings {
     fn default() -> Self {
-        Self { builder: Builder::Sah, traversal_cost: 15.0, intersection_cost: 20.0, empty_factor: 0.8, max_depth: 0, leaf_size: 1, bad_refines: 2, max_refs_factor: 16.0 }
+        Self { builder: Builder::Sah, traversal_cost: 15.0, intersection_cost: 20.0, leaf_block: BLOCK_WIDTH, empty_factor: 0.8, max_depth: 0, leaf_size: 1, bad_refines: 2, max_refs_factor: 16.0 }
     }
 }
 
@@ -67,6 +71,9 @@ impl BuildSettings {
         let finite_positive = |x: f32| x.is_finite() && x > 0.0;
         if !finite_positive(self.traversal_cost) || !finite_positive(self.intersection_cost) {
             anyhow::bail!("traversal and intersection costs must be finite and positive (got {} and {})", self.traversal_cost, self.intersection_cost);
+        }
+        if !(1..=64).contains(&self.leaf_block) {
+            anyhow::bail!("leaf block {} must be 1 to 64 triangles", self.leaf_block);
         }
         if !(self.empty_factor > 0.0 && self.empty_factor <= 1.0) {
             anyhow::bail!("empty-space factor {} must be in (0, 1]", self.empty_factor);
@@ -78,6 +85,11 @@ impl BuildSettings {
             anyhow::bail!("max depth {} exceeds {KD_MAX_DEPTH}, the deepest tree the traversal stack holds", self.max_depth);
         }
         Ok(())
+    }
+
+    /// The leaf tests `n` triangles take: ⌈n / leaf_block⌉.
+    pub fn leaf_tests(&self, n: usize) -> usize {
+        n.div_ceil(self.leaf_block.max(1) as usize)
     }
 
     /// The depth limit for `n` triangles.
@@ -109,11 +121,32 @@ pub fn default_max_depth(n: usize) -> u32 {
 /// them all.
 pub fn build(triangles: &[Triangle], bounds_min: Vec3, bounds_max: Vec3, settings: BuildSettings) -> KdTree {
     let max_depth = settings.depth_limit(triangles.len());
-    match settings.builder {
+    let mut tree = match settings.builder {
         Builder::Median => median::build(triangles, bounds_min, bounds_max, settings.leaf_size.max(4), max_depth),
         Builder::Sah => {
             let tris: Vec<clip::Tri64> = triangles.iter().map(clip::to_f64).collect();
             sah::build(&tris, Aabb { lo: bounds_min.to_array(), hi: bounds_max.to_array() }, &settings, max_depth)
         }
+    };
+    align_leaves(&mut tree);
+    tree
+}
+
+/// Starts every non-empty leaf's run of the index list at a multiple of `BLOCK_WIDTH`, so the
+/// leaf test reads ⌈count / 4⌉ blocks, not one more for a run straddling a block boundary. The
+/// gaps repeat the entry before them (a valid id that no leaf's run covers).
+pub fn align_leaves(tree: &mut KdTree) {
+    let width = BLOCK_WIDTH as usize;
+    let mut out = Vec::with_capacity(tree.indices.len() + tree.indices.len() / 2);
+    for n in tree.nodes.iter_mut().filter(|n| n.is_leaf()) {
+        let (first, count) = (n.first_index() as usize, n.count() as usize);
+        if count > 0 {
+            while out.len() % width != 0 {
+                out.push(*out.last().expect("a non-multiple length is not zero"));
+            }
+        }
+        *n = KdNode::leaf(out.len() as u32, count as u32);
+        out.extend_from_slice(&tree.indices[first..first + count]);
     }
+    tree.indices = out;
 }

@@ -7,9 +7,10 @@
 //!   §4.3), and sorted and merged in: O(N log N) in all.
 //! - One sweep per axis finds the plane of least cost over every candidate (§5.1); triangles lying
 //!   in the plane go to the side that makes the split cheaper (§4.2).
-//! - Cost C = λ·(K_T + K_I·(P_L·N_L + P_R·N_R)), with λ = `empty_factor` (0.8) when one side is
+//! - Cost C = λ·(K_T + K_I·(P_L·T(N_L) + P_R·T(N_R))), where T(N) = ⌈N / leaf_block⌉ counts the
+//!   leaf tests (4 triangles each by default, the SIMD leaf test; 1 gives the paper's N), with λ = `empty_factor` (0.8) when one side is
 //!   empty and the plane is not flat on the voxel's boundary, else 1 (the project's seed).
-//! - A node becomes a leaf when no split is cheaper than K_I·N, with pbrt-v3's allowance for a
+//! - A node becomes a leaf when no split is cheaper than K_I·T(N), with pbrt-v3's allowance for a
 //!   few splits that cost more ("bad refines", §4.4.2), at the depth limit, or when the split
 //!   would exceed the node's share of the reference budget (`max_refs_factor`·N for the whole
 //!   tree): long thin triangles crossing many cells (needles, fans) otherwise multiply their
@@ -232,6 +233,7 @@ struct Sah<'a> {
     triangles: &'a [Tri64],
     traversal_cost: f64,
     intersection_cost: f64,
+    leaf_block: usize,
     empty_factor: f64,
     max_depth: u32,
     leaf_size: usize,
@@ -243,6 +245,7 @@ pub fn build(triangles: &[Tri64], bounds: Aabb, settings: &BuildSettings, max_de
         triangles,
         traversal_cost: settings.traversal_cost as f64,
         intersection_cost: settings.intersection_cost as f64,
+        leaf_block: settings.leaf_block.max(1) as usize,
         empty_factor: settings.empty_factor as f64,
         max_depth,
         leaf_size: settings.leaf_size as usize,
@@ -272,6 +275,12 @@ pub fn build(triangles: &[Tri64], bounds: Aabb, settings: &BuildSettings, max_de
 }
 
 impl Sah<'_> {
+    /// Leaf tests for `n` triangles (`BuildSettings::leaf_tests`).
+    #[inline]
+    fn leaf_tests(&self, n: usize) -> f64 {
+        n.div_ceil(self.leaf_block) as f64
+    }
+
     fn build_parallel(&self, node: Node) -> Part {
         if node.triangles.len() < PARALLEL_MIN {
             let mut out = Subtree::default();
@@ -324,7 +333,7 @@ impl Sah<'_> {
         if (plane.below + plane.above) as f64 > node.budget {
             return None;
         }
-        let leaf_cost = self.intersection_cost * n as f64;
+        let leaf_cost = self.intersection_cost * self.leaf_tests(n);
         if plane.cost < leaf_cost {
             return Some((plane, node.bad_refines));
         }
@@ -387,7 +396,7 @@ impl Sah<'_> {
                 return None;
             }
             let lambda = if (nb == 0 || na == 0) && !flat_on_boundary { self.empty_factor } else { 1.0 };
-            Some(lambda * (self.traversal_cost + self.intersection_cost * (p_below * nb as f64 + p_above * na as f64)))
+            Some(lambda * (self.traversal_cost + self.intersection_cost * (p_below * self.leaf_tests(nb) + p_above * self.leaf_tests(na))))
         };
         if planar == 0 {
             // Both placements are the same split; ties go below.

@@ -33,7 +33,7 @@ pub fn stats(tree: &KdTree, triangles: usize, settings: &BuildSettings) -> TreeS
             let count = n.count() as usize;
             s.total_refs += count;
             s.empty_leaves += (count == 0) as usize;
-            cost += settings.intersection_cost as f64 * count as f64 * share;
+            cost += settings.intersection_cost as f64 * settings.leaf_tests(count) as f64 * share;
         } else {
             cost += settings.traversal_cost as f64 * share;
             let (below, above) = voxel.split(n.axis() as usize, n.split());

@@ -264,9 +264,19 @@ fn settings(a: &ImageArgs, loaded: &Loaded) -> Result<RenderSettings> {
     Ok(s)
 }
 
-/// Loads a scene with the default build settings and reports its warnings on stderr.
-fn load(path: &std::path::Path) -> Result<Loaded> {
-    let loaded = kdtrace::load(path, kdbuild::BuildSettings::default())?;
+/// The tree's build settings for the device that traverses it: the CPU tests leaves four
+/// triangles at a time, a GPU thread one by one (`kdbuild::BuildSettings::for_gpu`).
+fn build_settings(device: Device) -> kdbuild::BuildSettings {
+    match device {
+        Device::Cpu => kdbuild::BuildSettings::default(),
+        Device::Gpu => kdbuild::BuildSettings::for_gpu(),
+    }
+}
+
+/// Loads a scene, building its tree (unless stored) with `build`, and reports its warnings on
+/// stderr.
+fn load(path: &std::path::Path, build: kdbuild::BuildSettings) -> Result<Loaded> {
+    let loaded = kdtrace::load(path, build)?;
     for w in &loaded.warnings {
         eprintln!("warning: {w}");
     }
@@ -314,7 +324,7 @@ fn render(r: RenderArgs) -> Result<ExitCode> {
             anyhow::bail!("{}: the variance image is linear: write it as .exr", v.display());
         }
     }
-    let loaded = load(&r.scene)?;
+    let loaded = load(&r.scene, build_settings(r.device))?;
     let c = &loaded.compiled;
     let s = settings(&r.image, &loaded)?;
     let (img, adapter, render_s) = run_device(r.device, c, &s, &r.image)?;
@@ -360,7 +370,8 @@ fn render(r: RenderArgs) -> Result<ExitCode> {
 }
 
 fn verify(v: VerifyArgs) -> Result<ExitCode> {
-    let loaded = load(&v.scene)?;
+    // One tree for both devices (the CPU's), so any difference is the devices', not the trees'.
+    let loaded = load(&v.scene, build_settings(Device::Cpu))?;
     let c = &loaded.compiled;
     let mut s = settings(&v.image, &loaded)?;
     if s.time_limit_s.take().is_some() {
@@ -424,7 +435,8 @@ fn tree(t: TreeArgs) -> Result<ExitCode> {
 
 fn rays(r: RaysArgs) -> Result<ExitCode> {
     use kdtrace::raybench::{ideal_mrays_per_s, make_rays, measure, RayKind};
-    let loaded = load(&r.scene)?;
+    let build = build_settings(r.device);
+    let loaded = load(&r.scene, build)?;
     let c = &loaded.compiled;
     let s = settings(&r.image, &loaded)?;
     let g = match r.device {
@@ -432,14 +444,15 @@ fn rays(r: RaysArgs) -> Result<ExitCode> {
         Device::Cpu => None,
     };
     let adapter = g.as_ref().map_or_else(|| format!("cpu ({} threads)", rayon::current_num_threads()), |g| g.adapter.name.clone());
-    let build = kdbuild::BuildSettings::default();
     let traversal = s.traversal.resolve(g.as_ref().is_none_or(|g| g.is_cpu()));
     let mut primary_rate = None;
     for kind in [RayKind::Primary, RayKind::Ao, RayKind::Diffuse] {
         let batch = make_rays(c, &s, kind, traversal)?;
         let (t, _) = measure(c, g.as_ref(), kind, &batch, r.repeats)?;
         let primary = primary_rate.get_or_insert_with(|| t.clone());
-        let ideal = Some(ideal_mrays_per_s(primary, t.nodes_per_ray, t.tests_per_ray, build.traversal_cost as f64, build.intersection_cost as f64));
+        // K_I prices a leaf test of `leaf_block` triangles; the counts are of triangles.
+        let per_triangle = build.intersection_cost as f64 / build.leaf_block.max(1) as f64;
+        let ideal = Some(ideal_mrays_per_s(primary, t.nodes_per_ray, t.tests_per_ray, build.traversal_cost as f64, per_triangle));
         if r.image.json {
             let mut line = serde_json::to_value(&t)?;
             let extra = json!({
@@ -481,7 +494,7 @@ fn export(e: ExportArgs) -> Result<ExitCode> {
         }
     };
     // Loading checks every mesh and resolves the camera framing that the file may leave open.
-    let loaded = load(&e.scene)?;
+    let loaded = load(&e.scene, kdbuild::BuildSettings::default())?;
     let c = &loaded.compiled;
     let (lo, hi) = c.world_bounds();
     let resolved = loaded.settings.resolve(lo, hi)?;
@@ -510,7 +523,7 @@ fn compile(a: CompileArgs) -> Result<ExitCode> {
         anyhow::bail!("{}: compile writes a .kdc file", a.out.display());
     }
     let build = kdbuild::BuildSettings::default();
-    let loaded = load(&a.scene)?;
+    let loaded = load(&a.scene, build)?;
     let t = Instant::now();
     kdc::write(&a.out, &loaded.compiled, &build, &loaded.settings)?;
     let write_s = t.elapsed().as_secs_f64();

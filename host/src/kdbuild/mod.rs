@@ -29,18 +29,21 @@ pub enum Builder {
     Median,
 }
 
-/// How to build the tree. The defaults are Wald & Havran's costs and the seed's λ.
+/// How to build the tree. The defaults are for the CPU's four-lane leaf test (`for_gpu` for a
+/// GPU's one-by-one test), with Wald & Havran's K_T and the seed's λ.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct BuildSettings {
     pub builder: Builder,
     /// K_T, the cost of one traversal step (default 15).
     pub traversal_cost: f32,
-    /// K_I, the cost of one leaf test of up to `leaf_block` triangles (default 20).
+    /// K_I, the cost of one leaf test of up to `leaf_block` triangles (default 4: a four-lane
+    /// test measured about a quarter of a node step on the CPU; `for_gpu`: 20 per triangle,
+    /// Wald & Havran's).
     pub intersection_cost: f32,
     /// Triangles one leaf test covers in the SAH (default 4, `shared::layout::BLOCK_WIDTH`: the
-    /// traversal tests a leaf's triangles four at a time in SIMD lanes, so a leaf of 1 to 4
-    /// costs one test). 1 counts every triangle, Wald & Havran's model.
+    /// CPU tests a leaf's triangles four at a time in SIMD lanes, so a leaf of 1 to 4 costs one
+    /// test). 1 counts every triangle, Wald & Havran's model and how a GPU thread tests them.
     pub leaf_block: u32,
     /// λ, the factor on the cost of a split with one empty side whose plane is not on the
     /// voxel's boundary (default 0.8: favour cutting off empty space).
@@ -61,11 +64,18 @@ pub struct BuildSettings {
 
 impl Default for BuildSettings {
     fn default() -> Self {
-        Self { builder: Builder::Sah, traversal_cost: 15.0, intersection_cost: 20.0, leaf_block: BLOCK_WIDTH, empty_factor: 0.8, max_depth: 0, leaf_size: 1, bad_refines: 2, max_refs_factor: 16.0 }
+        Self { builder: Builder::Sah, traversal_cost: 15.0, intersection_cost: 4.0, leaf_block: BLOCK_WIDTH, empty_factor: 0.8, max_depth: 0, leaf_size: 1, bad_refines: 2, max_refs_factor: 16.0 }
     }
 }
 
 impl BuildSettings {
+    /// The defaults for a tree a GPU traverses. Its threads test a leaf's triangles one by one
+    /// (`shared::kdtree::test_leaf`), so a leaf costs K_I per triangle: Wald & Havran's model
+    /// and costs (K_T = 15, K_I = 20), which lavapipe also ran fastest (BENCHMARKS.md).
+    pub fn for_gpu() -> Self {
+        Self { intersection_cost: 20.0, leaf_block: 1, ..Self::default() }
+    }
+
     /// Rejects settings that would make the SAH meaningless or the tree unusable.
     pub fn check(&self) -> anyhow::Result<()> {
         let finite_positive = |x: f32| x.is_finite() && x > 0.0;

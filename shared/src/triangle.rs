@@ -123,11 +123,15 @@ impl RayShear {
         let any_neg = u.cmplt(zero) | v.cmplt(zero) | w.cmplt(zero);
         let any_pos = u.cmpgt(zero) | v.cmpgt(zero) | w.cmpgt(zero);
         let det = u + v + w;
+        // Most blocks a ray tests hold no triangle it passes through: leave before the division.
+        let inside = (!(any_neg & any_pos) & det.cmpne(zero)).bitmask() & lanes;
+        if inside == 0 {
+            return None;
+        }
         let sz = Vec4::splat(self.sz);
         let t_scaled = u * (sz * akz) + v * (sz * bkz) + w * (sz * ckz);
         let t = t_scaled / det;
-        let ok = !(any_neg & any_pos) & det.cmpne(zero) & t.cmpgt(Vec4::splat(t_min)) & t.cmplt(Vec4::splat(t_max));
-        let mask = ok.bitmask() & lanes;
+        let mask = (t.cmpgt(Vec4::splat(t_min)) & t.cmplt(Vec4::splat(t_max))).bitmask() & inside;
         if mask == 0 {
             return None;
         }

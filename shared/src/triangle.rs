@@ -15,6 +15,8 @@ use crate::vecmath::{axis, xyz};
 #[derive(Clone, Copy)]
 pub struct RayShear {
     pub origin: Vec3,
+    /// The origin's components in the order kx, ky, kz.
+    origin_k: Vec3,
     kx: u32,
     ky: u32,
     kz: u32,
@@ -53,7 +55,8 @@ impl RayShear {
         }
         let dz = axis(dir, kz);
         let sz = 1.0 / dz;
-        Self { origin, kx, ky, kz, sx: axis(dir, kx) * sz, sy: axis(dir, ky) * sz, sz }
+        let origin_k = Vec3::new(axis(origin, kx), axis(origin, ky), axis(origin, kz));
+        Self { origin, origin_k, kx, ky, kz, sx: axis(dir, kx) * sz, sy: axis(dir, ky) * sz, sz }
     }
 
     /// Intersects `tri`; returns the hit when its distance lies strictly inside (t_min, t_max).
@@ -96,10 +99,10 @@ impl RayShear {
 /// One vertex of four triangles in the sheared frame: (x, y) after the shear and the distance
 /// coordinate before scaling, lane by lane the same operations as `RayShear::intersect`.
 #[inline]
-fn sheared4(r: &RayShear, b: &TriBlock, j: usize, o: (Vec4, Vec4, Vec4)) -> (Vec4, Vec4, Vec4) {
-    let kz = b.v[3 * j + r.kz as usize] - o.2;
-    let x = (b.v[3 * j + r.kx as usize] - o.0) - Vec4::splat(r.sx) * kz;
-    let y = (b.v[3 * j + r.ky as usize] - o.1) - Vec4::splat(r.sy) * kz;
+fn sheared4(b: &TriBlock, j: usize, k: (usize, usize, usize), o: (Vec4, Vec4, Vec4), s: (Vec4, Vec4)) -> (Vec4, Vec4, Vec4) {
+    let kz = b.v[3 * j + k.2] - o.2;
+    let x = (b.v[3 * j + k.0] - o.0) - s.0 * kz;
+    let y = (b.v[3 * j + k.1] - o.1) - s.1 * kz;
     (x, y, kz)
 }
 
@@ -112,10 +115,14 @@ impl RayShear {
     /// With `first`, the lowest lane that hits (what a one-by-one any-hit test stops at).
     #[inline]
     pub fn intersect4(&self, b: &TriBlock, lanes: u32, t_min: f32, t_max: f32, first: bool) -> Option<(u32, TriangleHit)> {
-        let o = (Vec4::splat(axis(self.origin, self.kx)), Vec4::splat(axis(self.origin, self.ky)), Vec4::splat(axis(self.origin, self.kz)));
-        let (ax, ay, akz) = sheared4(self, b, 0, o);
-        let (bx, by, bkz) = sheared4(self, b, 1, o);
-        let (cx, cy, ckz) = sheared4(self, b, 2, o);
+        // The axes are below 3 by construction; saying so lets the compiler drop the bounds
+        // checks of the nine loads.
+        let k = ((self.kx as usize).min(2), (self.ky as usize).min(2), (self.kz as usize).min(2));
+        let o = (Vec4::splat(self.origin_k.x), Vec4::splat(self.origin_k.y), Vec4::splat(self.origin_k.z));
+        let s = (Vec4::splat(self.sx), Vec4::splat(self.sy));
+        let (ax, ay, akz) = sheared4(b, 0, k, o, s);
+        let (bx, by, bkz) = sheared4(b, 1, k, o, s);
+        let (cx, cy, ckz) = sheared4(b, 2, k, o, s);
         let u = cx * by - cy * bx;
         let v = ax * cy - ay * cx;
         let w = bx * ay - by * ax;

@@ -2,7 +2,7 @@
 //! zero-area, a single triangle, 10^5 copies of one triangle) must give a valid, bounded tree
 //! quickly; rays lying exactly in split planes and rays starting on triangle edges must get
 //! exactly the brute-force hit.
-use kdtrace::kdbuild::{build, stats, validate, BuildSettings, Builder, KdTree};
+use kdtrace::kdbuild::{build, is_aligned, stats, validate, BuildSettings, Builder, KdTree};
 use kdtrace::render::Compiled;
 use kdtrace::{compile, obj};
 use rand::{Rng, SeedableRng};
@@ -10,7 +10,7 @@ use rand_pcg::Pcg64;
 use rayon::prelude::*;
 use shared::glam::Vec3;
 use shared::kdtree::{intersect, intersect_brute_force};
-use shared::layout::{Triangle, BLOCK_WIDTH, KD_MAX_DEPTH};
+use shared::layout::{KdNode, Triangle, BLOCK_WIDTH, KD_MAX_DEPTH};
 use shared::vecmath::xyz;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -42,9 +42,7 @@ fn build_checked(what: &str, tris: &[Triangle]) -> KdTree {
         let secs = t0.elapsed().as_secs_f64();
         validate(&tree, tris).unwrap_or_else(|e| panic!("{what} ({builder:?}): {e}"));
         assert!(tree.depth <= KD_MAX_DEPTH, "{what}: depth {}", tree.depth);
-        for (i, n) in tree.nodes.iter().enumerate() {
-            assert!(!n.is_leaf() || n.count() == 0 || n.first_index() % BLOCK_WIDTH == 0, "{what} ({builder:?}): leaf {i} starts at index {}, not a block boundary", n.first_index());
-        }
+        assert!(is_aligned(&tree), "{what} ({builder:?}): the index list is not laid out in blocks");
         let st = stats(&tree, tris.len(), &settings);
         eprintln!("{what} ({builder:?}): {} triangles, {} nodes, depth {}, {} refs, SAH cost {:.1}, {secs:.3} s", tris.len(), st.nodes, st.max_depth, st.total_refs, st.sah_cost);
         assert!(secs < 30.0, "{what}: build took {secs} s");
@@ -250,4 +248,40 @@ fn each_leaf_cost_model_builds_the_tree_cheapest_under_it() {
     eprintln!("bunny: CPU model {cc:.1} (CPU tree) vs {cg:.1} (GPU tree); GPU model {gc:.1} vs {gg:.1}; nodes {} vs {}", tree_cpu.nodes.len(), tree_gpu.nodes.len());
     assert!(cc < 0.9 * cg, "the CPU tree must be clearly cheaper under the CPU model");
     assert!(gg < 0.9 * gc, "the GPU tree must be clearly cheaper under the GPU model");
+}
+
+/// A tree whose leaves do not start on block boundaries (a .kdc file of the old layout, a
+/// builder elsewhere) is laid out anew by `Compiled::new`, keeping every leaf's triangles, and
+/// its hits stay exactly the brute-force ones.
+#[test]
+fn unaligned_leaves_are_laid_out_anew_and_stay_exact() {
+    let scene = obj::load_obj(&shared_scene("bunny-stanford-bun_zipper/bun_zipper.obj")).unwrap();
+    let mut tree = compile(scene.clone(), BuildSettings::default()).tree;
+    assert!(is_aligned(&tree));
+    // Pack the runs back to back, as the list was before blocks.
+    let mut packed = Vec::new();
+    let mut runs = Vec::new();
+    for n in tree.nodes.iter_mut().filter(|n| n.is_leaf()) {
+        let run = tree.indices[n.first_index() as usize..(n.first_index() + n.count()) as usize].to_vec();
+        *n = KdNode::leaf(packed.len() as u32, n.count());
+        packed.extend_from_slice(&run);
+        runs.push(run);
+    }
+    tree.indices = packed;
+    assert!(!is_aligned(&tree), "packing must break the layout, or this test checks nothing");
+    let c = Compiled::new(scene, tree);
+    assert!(is_aligned(&c.tree));
+    let after: Vec<Vec<u32>> = c.tree.nodes.iter().filter(|n| n.is_leaf()).map(|n| c.tree.indices[n.first_index() as usize..(n.first_index() + n.count()) as usize].to_vec()).collect();
+    assert_eq!(after, runs, "laying out must keep every leaf's triangles in order");
+    let mut rng = Pcg64::seed_from_u64(5);
+    let (lo, hi) = (c.tree.bounds_min, c.tree.bounds_max);
+    let rays: Vec<(Vec3, Vec3)> = (0..20_000)
+        .map(|_| {
+            let o = lo + (hi - lo) * Vec3::new(rng.random_range(-0.2..1.2), rng.random_range(-0.2..1.2), rng.random_range(-0.2..1.2));
+            let t = &c.scene.triangles[rng.random_range(0..c.scene.triangles.len())];
+            (o, (xyz(t.v0) + xyz(t.v1) + xyz(t.v2)) / 3.0 - o)
+        })
+        .collect();
+    let hits = check_exact(&c, &rays, "bunny, laid out anew");
+    assert!(hits > 10_000, "too few hits: {hits}");
 }

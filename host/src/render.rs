@@ -158,7 +158,10 @@ pub struct Compiled {
 }
 
 impl Compiled {
-    pub fn new(scene: Scene, tree: KdTree) -> Self {
+    pub fn new(scene: Scene, mut tree: KdTree) -> Self {
+        // A tree from a .kdc file of an older layout, or built elsewhere, gets the block layout
+        // the CPU's leaf test relies on; a fresh build already has it.
+        crate::kdbuild::align_leaves(&mut tree);
         let mut lights = scene.lights.clone();
         if lights.is_empty() {
             lights.push(Light::default());
@@ -223,9 +226,9 @@ impl Compiled {
     }
 }
 
-/// Block `k` holds the triangles of `indices[4k .. 4k + 4]`, one per lane; lanes past the end
-/// stay zero (a degenerate triangle; the leaf test masks them anyway). At least one block, since
-/// a GPU buffer cannot be empty.
+/// Block `k` holds the triangles of `indices[4k .. 4k + 4]`, one per lane (`align_leaves` makes
+/// the list a whole number of blocks; lanes past a shorter list stay zero, a degenerate triangle
+/// no ray hits). At least one block, since a GPU buffer cannot be empty.
 pub fn leaf_blocks(indices: &[u32], triangles: &[Triangle]) -> Vec<TriBlock> {
     let width = BLOCK_WIDTH as usize;
     let mut blocks: Vec<TriBlock> = indices

@@ -184,29 +184,32 @@ pub fn test_leaf_each(scene: &SceneView, shear: &RayShear, n: KdNode, best: &mut
     done
 }
 
-/// `test_leaf` four triangles at a time (`TriBlock`, `RayShear::intersect4`). Lanes outside the
-/// leaf's run of the index list are masked, so a leaf that does not start at a multiple of four
-/// (a tree from elsewhere) is tested correctly too, only with one more block.
+/// `test_leaf` four triangles at a time (`TriBlock`, `RayShear::intersect4`), whole blocks
+/// without masks: the host lays the index list out so that every non-empty leaf's run starts a
+/// block and the lanes after its end repeat its last triangle (`kdbuild::align_leaves` in the
+/// host). A repeat hits at the same distance as the real lane before it, which wins the tie, so
+/// the hit and the counts are `test_leaf_each`'s.
 #[inline]
 pub fn test_leaf_blocks(scene: &SceneView, shear: &RayShear, n: KdNode, best: &mut Hit, tests: &mut u32, any_hit: bool) -> bool {
     let start = n.first_index();
     let end = start + n.count();
     *tests += n.count();
-    let mut base = if start == end { end } else { start & !(BLOCK_WIDTH - 1) };
+    let mut k = start / BLOCK_WIDTH;
+    let past = end.div_ceil(BLOCK_WIDTH);
     let mut done = false;
-    while (base < end) & !done {
-        let first = if start > base { start - base } else { 0 };
-        let past = if end - base < BLOCK_WIDTH { end - base } else { BLOCK_WIDTH };
-        let lanes = ((1u32 << past) - 1) & !((1u32 << first) - 1);
-        if let Some((lane, h)) = shear.intersect4(&scene.blocks[(base / BLOCK_WIDTH) as usize], lanes, 0.0, best.t, any_hit) {
-            let id = scene.indices[(base + lane) as usize];
+    while (k < past) & !done {
+        if let Some((lane, h)) = shear.intersect4(&scene.blocks[k as usize], ALL_LANES, 0.0, best.t, any_hit) {
+            let id = scene.indices[(k * BLOCK_WIDTH + lane) as usize];
             *best = Hit { t: h.t, triangle: id, u: h.u, v: h.v, w: h.w, nodes: 0, tests: 0 };
             done = any_hit;
         }
-        base += BLOCK_WIDTH;
+        k += 1;
     }
     done
 }
+
+/// `intersect4`'s lane mask for all four lanes.
+const ALL_LANES: u32 = (1 << BLOCK_WIDTH) - 1;
 
 /// The step at one interior node: the child to visit now, the end of the ray's interval in it,
 /// and the far child to visit later over its own interval, if the ray reaches it (Wald's thesis

@@ -142,21 +142,42 @@ pub fn build(triangles: &[Triangle], bounds_min: Vec3, bounds_max: Vec3, setting
     tree
 }
 
-/// Starts every non-empty leaf's run of the index list at a multiple of `BLOCK_WIDTH`, so the
-/// leaf test reads ⌈count / 4⌉ blocks, not one more for a run straddling a block boundary. The
-/// gaps repeat the entry before them (a valid id that no leaf's run covers).
+/// Lays the index list out for the CPU's leaf test (`shared::kdtree::test_leaf_blocks`), which
+/// tests whole blocks of four entries without masking lanes: every non-empty leaf's run starts
+/// at a multiple of `BLOCK_WIDTH`, and the entries after a run up to the next multiple repeat the
+/// run's last triangle (the list's length is a multiple too). A repeated triangle hits at the
+/// same distance as its first copy, which comes first and wins the tie, so the extra lanes never
+/// change a hit. Does nothing to a tree already laid out so (every builder's output).
 pub fn align_leaves(tree: &mut KdTree) {
+    if is_aligned(tree) {
+        return;
+    }
     let width = BLOCK_WIDTH as usize;
     let mut out = Vec::with_capacity(tree.indices.len() + tree.indices.len() / 2);
+    let pad = |out: &mut Vec<u32>| {
+        while out.len() % width != 0 {
+            out.push(*out.last().expect("a length that is not a multiple of the width is not zero"));
+        }
+    };
     for n in tree.nodes.iter_mut().filter(|n| n.is_leaf()) {
         let (first, count) = (n.first_index() as usize, n.count() as usize);
         if count > 0 {
-            while out.len() % width != 0 {
-                out.push(*out.last().expect("a non-multiple length is not zero"));
-            }
+            pad(&mut out);
         }
         *n = KdNode::leaf(out.len() as u32, count as u32);
         out.extend_from_slice(&tree.indices[first..first + count]);
     }
+    pad(&mut out);
     tree.indices = out;
+}
+
+/// Whether `tree` is laid out as `align_leaves` lays it out.
+pub fn is_aligned(tree: &KdTree) -> bool {
+    let width = BLOCK_WIDTH as usize;
+    tree.indices.len() % width == 0
+        && tree.nodes.iter().filter(|n| n.is_leaf() && n.count() > 0).all(|n| {
+            let (first, end) = (n.first_index() as usize, (n.first_index() + n.count()) as usize);
+            let padded = end.div_ceil(width) * width;
+            first % width == 0 && tree.indices.get(end - 1..padded).is_some_and(|tail| tail.iter().all(|&id| id == tail[0]))
+        })
 }

@@ -88,6 +88,13 @@ pub fn trace_sample(scene: &SceneView, p: &RenderParams, px: u32, py: u32, sampl
 #[inline]
 fn shade_vertex(scene: &SceneView, p: &RenderParams, path: &mut Path, rng: &mut Sampler, hit: &Hit) -> bool {
     let dir = path.dir;
+    let last = path.bounce == p.max_bounces + 1;
+    // This vertex's sample sets, drawn first: each is a chain of dependent hashes and
+    // multiplications (`sobol`), which a CPU overlaps with the shading below when they start
+    // here, not where their values are needed. The order of the sets is unchanged: the light
+    // set (when there are lights), then the BSDF set; the last vertex draws none.
+    let (u_select, u_light) = if (scene.light_count > 0) & !last { rng.next_2d() } else { (0.0, 0.0) };
+    let [ub1, ub2, u_roulette] = if last { [0.0; 3] } else { rng.next_3d() };
     let tri = &scene.triangles[hit.triangle as usize];
     let info = scene.info[hit.triangle as usize];
     let mat = &scene.materials[info.material as usize];
@@ -108,7 +115,7 @@ fn shade_vertex(scene: &SceneView, p: &RenderParams, path: &mut Path, rng: &mut 
         }
         path.radiance += path.beta * le * weight;
     }
-    if path.bounce == p.max_bounces + 1 {
+    if last {
         return false;
     }
 
@@ -120,12 +127,11 @@ fn shade_vertex(scene: &SceneView, p: &RenderParams, path: &mut Path, rng: &mut 
         // The set's best-spread pair picks the light and the point on it: the picking dimension,
         // rescaled within the picked light's interval, is the point's first coordinate, so the
         // points stay stratified over a light made of several triangles (a quad lamp).
-        let (u_select, u2) = rng.next_2d();
         let index = select_light(scene.lights, scene.light_count, u_select);
         let light = scene.lights[index as usize];
         let u1 = remap_in_light(scene.lights, index, u_select);
         let ltri = &scene.triangles[light.triangle as usize];
-        let (b0, b1, b2) = uniform_triangle(u1, u2);
+        let (b0, b1, b2) = uniform_triangle(u1, u_light);
         let on_light = interpolate(ltri, b0, b1, b2);
         let q = on_light.p;
         let nl = normalize(geometric_normal(ltri));
@@ -145,7 +151,6 @@ fn shade_vertex(scene: &SceneView, p: &RenderParams, path: &mut Path, rng: &mut 
         }
     }
 
-    let [ub1, ub2, u_roulette] = rng.next_3d();
     let bs = sample_bsdf(mat, ns, ub1, ub2);
     if bs.pdf <= 0.0 {
         return false;

@@ -83,23 +83,27 @@ pub fn sobol3(index: u32) -> [u32; 3] {
     [x0, x1, x2]
 }
 
-/// Dimensions 0 and 1 of `sobol3_reversed`, for sets that need only two.
+/// Dimensions 0 and 1 of `sobol3_reversed`, for sets that need only two, without a loop over
+/// the index bits. With s = the index (`reversed_index` reversed back), dimension 0 in the
+/// reversed domain is s itself, and dimension 1 is s through the Pascal matrix mod 2: bit j
+/// gathers bit k of s for every k whose bits include j's (Lucas: C(k, j) is odd iff j ⊆ k), a
+/// sum over supersets that five shift-and-mask steps compute (the fast zeta transform).
 #[inline]
 pub fn sobol2_reversed(reversed_index: u32) -> [u32; 2] {
-    let (mut x0, mut x1) = (0u32, 0u32);
-    let mut w0 = 1u32;
-    let mut w1 = 1u32;
-    let mut r = reversed_index;
-    while r != 0 {
-        if (r & 0x8000_0000) != 0 {
-            x0 ^= w0;
-            x1 ^= w1;
-        }
-        r <<= 1;
-        w0 <<= 1;
-        w1 ^= w1 << 1;
-    }
-    [x0, x1]
+    let s = reversed_index.reverse_bits();
+    [s, superset_sum(s)]
+}
+
+/// Bit j of the result is the XOR of the bits k of `s` with j ⊆ k (k's bits include j's).
+#[inline]
+fn superset_sum(s: u32) -> u32 {
+    let mut y = s;
+    y ^= (y >> 1) & 0x5555_5555;
+    y ^= (y >> 2) & 0x3333_3333;
+    y ^= (y >> 4) & 0x0f0f_0f0f;
+    y ^= (y >> 8) & 0x00ff_00ff;
+    y ^= (y >> 16) & 0x0000_ffff;
+    y
 }
 
 /// `scrambled_sobol3`'s first two coordinates at two thirds of the work.
@@ -115,21 +119,16 @@ pub fn scrambled_sobol2(reversed_index: u32, seeds: [u32; 4]) -> [u32; 2] {
 /// work on reversed values, so this saves a reversal per coordinate and one of the index.
 #[inline]
 pub fn sobol3_reversed(reversed_index: u32) -> [u32; 3] {
-    let (mut x0, mut x1, mut x2) = (0u32, 0u32, 0u32);
-    let mut w0 = 1u32;
-    let mut w1 = 1u32;
+    let [x0, x1] = sobol2_reversed(reversed_index);
+    let mut x2 = 0u32;
     let mut w2 = 1u32;
     let mut w2_next = 3u32;
     let mut r = reversed_index;
     while r != 0 {
         if (r & 0x8000_0000) != 0 {
-            x0 ^= w0;
-            x1 ^= w1;
             x2 ^= w2;
         }
         r <<= 1;
-        w0 <<= 1;
-        w1 ^= w1 << 1;
         let w2_after = w2_next ^ w2 ^ (w2 << 2);
         w2 = w2_next;
         w2_next = w2_after;
@@ -176,6 +175,29 @@ mod tests {
         let (xa, xb, xab) = (sobol3(a), sobol3(b), sobol3(a | b));
         for d in 0..3 {
             assert_eq!(xa[d] ^ xb[d], xab[d]);
+        }
+    }
+
+    /// The loop-free dimensions 0 and 1 against the direction-number loop, on random 32-bit
+    /// indices (the other tests cover small ones).
+    #[test]
+    fn closed_forms_equal_the_loop() {
+        let mut x = 0x1234_5678u32;
+        for _ in 0..20_000 {
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            let (mut x0, mut x1, mut w0, mut w1, mut r) = (0u32, 0u32, 1u32, 1u32, x);
+            while r != 0 {
+                if (r & 0x8000_0000) != 0 {
+                    x0 ^= w0;
+                    x1 ^= w1;
+                }
+                r <<= 1;
+                w0 <<= 1;
+                w1 ^= w1 << 1;
+            }
+            assert_eq!(sobol2_reversed(x), [x0, x1], "reversed index {x:#x}");
         }
     }
 

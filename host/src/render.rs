@@ -41,8 +41,9 @@ impl Traversal {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum SamplerKind {
-    /// Shuffled Owen-scrambled Sobol points, stratified per pixel and per dimension set (Burley
-    /// 2020; `shared::sobol`): the same mean, lower error at equal samples.
+    /// Shuffled Owen-scrambled Sobol points, stratified per pixel and per dimension set for the
+    /// film and the first two vertices (Burley 2020; `shared::sobol`, `rng::SOBOL_SETS`): the
+    /// same mean, lower error at equal samples.
     #[default]
     Sobol,
     /// Independent uniforms: each a hash of (pixel, sample, set, seed).

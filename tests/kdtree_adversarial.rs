@@ -9,7 +9,8 @@ use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use rayon::prelude::*;
 use shared::glam::Vec3;
-use shared::kdtree::{intersect, intersect_brute_force};
+use shared::kdtree::{intersect, intersect_brute_force, test_leaf_blocks, test_leaf_each, Hit};
+use shared::triangle::RayShear;
 use shared::layout::{KdNode, Triangle, BLOCK_WIDTH, KD_MAX_DEPTH};
 use shared::vecmath::xyz;
 use std::path::PathBuf;
@@ -284,4 +285,38 @@ fn unaligned_leaves_are_laid_out_anew_and_stay_exact() {
         .collect();
     let hits = check_exact(&c, &rays, "bunny, laid out anew");
     assert!(hits > 10_000, "too few hits: {hits}");
+}
+
+/// The CPU's four-lane leaf test against the one-by-one test the GPU runs, leaf by leaf on the
+/// bunny's tree (empty leaves, whose runs need not start a block, included): the same hit, the
+/// same count of tests and the same verdict, for closest and any hit.
+#[test]
+fn block_leaf_test_equals_the_one_by_one_test_on_every_leaf() {
+    let scene = obj::load_obj(&shared_scene("bunny-stanford-bun_zipper/bun_zipper.obj")).unwrap();
+    let c = compile(scene, BuildSettings::default());
+    let params = c.bounds_params();
+    let view = c.view(&params);
+    let leaves: Vec<KdNode> = c.tree.nodes.iter().copied().filter(|n| n.is_leaf()).collect();
+    assert!(leaves.iter().any(|n| n.count() == 0 && n.first_index() % BLOCK_WIDTH != 0), "no unaligned empty leaf: the empty case goes untested");
+    let (lo, hi) = (c.tree.bounds_min, c.tree.bounds_max);
+    let mut rng = Pcg64::seed_from_u64(17);
+    let mut hits = 0;
+    for _ in 0..300 {
+        let o = lo + (hi - lo) * Vec3::new(rng.random_range(-0.2..1.2), rng.random_range(-0.2..1.2), rng.random_range(-0.2..1.2));
+        let t = &c.scene.triangles[rng.random_range(0..c.scene.triangles.len())];
+        let d = (xyz(t.v0) + xyz(t.v1) + xyz(t.v2)) / 3.0 - o;
+        let shear = RayShear::new(o, d);
+        for &n in &leaves {
+            for any_hit in [false, true] {
+                let t_max = if any_hit { 1.0 } else { f32::MAX };
+                let (mut a, mut b) = (Hit::miss(t_max), Hit::miss(t_max));
+                let (mut ta, mut tb) = (0, 0);
+                let da = test_leaf_blocks(&view, &shear, n, &mut a, &mut ta, any_hit);
+                let db = test_leaf_each(&view, &shear, n, &mut b, &mut tb, any_hit);
+                assert_eq!((da, ta, a.triangle, a.t.to_bits(), a.u.to_bits()), (db, tb, b.triangle, b.t.to_bits(), b.u.to_bits()), "leaf {n:?}, any hit {any_hit}, o={o:?} d={d:?}");
+                hits += a.is_hit() as usize;
+            }
+        }
+    }
+    assert!(hits > 300, "too few leaf hits to mean anything: {hits}");
 }

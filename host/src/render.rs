@@ -159,7 +159,9 @@ pub struct Compiled {
 }
 
 impl Compiled {
-    pub fn new(scene: Scene, mut tree: KdTree) -> Self {
+    pub fn new(mut scene: Scene, mut tree: KdTree) -> Self {
+        // Shading reads each triangle's unit normal from its `w` components.
+        scene.triangles.par_iter_mut().for_each(|t| *t = t.with_unit_normal());
         // A tree from a .kdc file of an older layout, or built elsewhere, gets the block layout
         // the CPU's leaf test relies on; a fresh build already has it.
         crate::kdbuild::align_leaves(&mut tree);

@@ -14,7 +14,7 @@ use crate::numerics::{offset_ray_origin, sanitize_radiance};
 use crate::rng::Sampler;
 use crate::sampling::{power_heuristic, remap_in_light, select_light, uniform_triangle};
 use crate::scene::SceneView;
-use crate::triangle::{geometric_normal, hit_point, interpolate, TriangleHit};
+use crate::triangle::{geometric_normal, hit_point, interpolate, stored_normal, TriangleHit};
 use crate::vecmath::{dot, length_squared, max_component, normalize, xyz};
 #[allow(unused_imports)]
 use spirv_std::num_traits::Float;
@@ -99,7 +99,7 @@ fn shade_vertex(scene: &SceneView, p: &RenderParams, path: &mut Path, rng: &mut 
     let info = scene.info[hit.triangle as usize];
     let mat = &scene.materials[info.material as usize];
     let ng = geometric_normal(tri);
-    let n = normalize(ng);
+    let n = stored_normal(tri);
     let surface = hit_point(tri, &TriangleHit { t: hit.t, u: hit.u, v: hit.v, w: hit.w });
     let pos = surface.p;
 
@@ -134,7 +134,7 @@ fn shade_vertex(scene: &SceneView, p: &RenderParams, path: &mut Path, rng: &mut 
         let (b0, b1, b2) = uniform_triangle(u1, u_light);
         let on_light = interpolate(ltri, b0, b1, b2);
         let q = on_light.p;
-        let nl = normalize(geometric_normal(ltri));
+        let nl = stored_normal(ltri);
         let to_light = q - pos;
         let dist2 = length_squared(to_light);
         let wi = to_light * (1.0 / dist2.sqrt());

@@ -194,8 +194,9 @@ pub fn test_leaf_blocks(scene: &SceneView, shear: &RayShear, n: KdNode, best: &m
     let start = n.first_index();
     let end = start + n.count();
     *tests += n.count();
+    // An empty leaf's start need not be aligned (only non-empty runs are): it tests nothing.
     let mut k = start / BLOCK_WIDTH;
-    let past = end.div_ceil(BLOCK_WIDTH);
+    let past = if start == end { k } else { end.div_ceil(BLOCK_WIDTH) };
     let mut done = false;
     while (k < past) & !done {
         if let Some((lane, h)) = shear.intersect4(&scene.blocks[k as usize], ALL_LANES, 0.0, best.t, any_hit) {

@@ -5,7 +5,10 @@
 //! with `bytemuck::cast_slice`. Enums travel as a tag plus an index, never as pointers.
 use crate::glam::Vec4;
 
-/// A triangle's three vertices in world space; `w` is unused (kept 0).
+/// A triangle's three vertices in world space. The `w` components of v0, v1, v2 hold its unit
+/// geometric normal (`triangle::unit_normal`, stored by the host when it compiles a scene:
+/// `Triangle::with_unit_normal`), so shading reads it instead of a square root and a division
+/// per vertex; every intersection test reads only `xyz`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 #[cfg_attr(not(target_arch = "spirv"), derive(bytemuck::Pod, bytemuck::Zeroable))]

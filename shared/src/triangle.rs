@@ -165,6 +165,28 @@ pub fn geometric_normal(tri: &Triangle) -> Vec3 {
     crate::vecmath::cross(xyz(tri.v1) - xyz(tri.v0), xyz(tri.v2) - xyz(tri.v0))
 }
 
+/// The unit geometric normal, normalize((v1 − v0) × (v2 − v0)): what `Triangle::with_unit_normal`
+/// stores in the `w` components.
+#[inline]
+pub fn unit_normal(tri: &Triangle) -> Vec3 {
+    crate::vecmath::normalize(geometric_normal(tri))
+}
+
+/// The unit normal stored in the `w` components (`unit_normal`'s value, bit for bit).
+#[inline]
+pub fn stored_normal(tri: &Triangle) -> Vec3 {
+    Vec3::new(tri.v0.w, tri.v1.w, tri.v2.w)
+}
+
+impl Triangle {
+    /// This triangle with its unit normal in the `w` components.
+    #[inline]
+    pub fn with_unit_normal(self) -> Self {
+        let n = unit_normal(&self);
+        Self { v0: xyz(self.v0).extend(n.x), v1: xyz(self.v1).extend(n.y), v2: xyz(self.v2).extend(n.z) }
+    }
+}
+
 /// A point on a triangle and the bound of its rounding error, per axis (pbrt-v4 §6.8.5).
 #[derive(Clone, Copy, Debug)]
 pub struct SurfacePoint {

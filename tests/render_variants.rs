@@ -49,6 +49,22 @@ fn all_traversal_and_dispatch_variants_render_the_same_image() {
     }
 }
 
+/// `render --device` builds a different tree per device (`BuildSettings::for_gpu`): leaves of
+/// one to a few triangles for the GPU, of a dozen or more for the CPU's four-lane test. Hits are
+/// exact on any tree, so the images must still be identical, bit for bit.
+#[test]
+fn each_device_on_its_own_tree_renders_the_same_image() {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/scenes/CornellBox-Water/CornellBox-Water.obj");
+    let cpu_tree = load(&path, BuildSettings::default()).unwrap().compiled;
+    let gpu_tree = load(&path, BuildSettings::for_gpu()).unwrap().compiled;
+    assert!(gpu_tree.tree.nodes.len() > 4 * cpu_tree.tree.nodes.len(), "the trees should differ: {} and {} nodes", gpu_tree.tree.nodes.len(), cpu_tree.tree.nodes.len());
+    let s = settings();
+    let reference = cpu::render(&cpu_tree, &s, &no_progress).unwrap();
+    same(&reference, &cpu::render(&gpu_tree, &s, &no_progress).unwrap(), "CPU on the GPU's tree");
+    let g = gpu::Gpu::open(None).expect("a Vulkan adapter (lavapipe in CI)");
+    same(&reference, &g.render(&gpu_tree, &s, &no_progress).unwrap(), &format!("GPU on its own tree, {}", g.adapter.name));
+}
+
 #[test]
 fn cost_aov_counts_the_camera_ray_work_on_both_devices() {
     let c = water();

@@ -19,8 +19,8 @@ use shared::material::sample as sample_bsdf;
 use shared::numerics::offset_ray_origin;
 use shared::raycast::cast_ray;
 use shared::rng::{Sampler, SAMPLER_INDEPENDENT};
-use shared::triangle::{geometric_normal, hit_point, RayShear};
-use shared::vecmath::{dot, normalize};
+use shared::triangle::{hit_point, unit_normal, RayShear};
+use shared::vecmath::dot;
 use std::time::Instant;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, clap::ValueEnum)]
@@ -63,7 +63,7 @@ pub fn make_rays(c: &Compiled, s: &RenderSettings, kind: RayKind, traversal: Tra
             // The hit again, for its barycentrics: the point and its error bound come from them.
             let h = RayShear::new(eye, d).intersect(tri, 0.0, f32::MAX)?;
             let surface = hit_point(tri, &h);
-            let n = normalize(geometric_normal(tri));
+            let n = unit_normal(tri);
             let n = if dot(n, d) < 0.0 { n } else { -n };
             let (u1, u2) = Sampler::new(SAMPLER_INDEPENDENT, i as u32, 0, 0x5eed).next_2d();
             let wi = sample_bsdf(&c.scene.materials[c.scene.info[hit.triangle as usize].material as usize], n, u1, u2).wi;

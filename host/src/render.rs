@@ -231,10 +231,10 @@ impl Compiled {
 
 /// Block `k` holds the triangles of `indices[4k .. 4k + 4]`, one per lane (`align_leaves` makes
 /// the list a whole number of blocks; lanes past a shorter list stay zero, a degenerate triangle
-/// no ray hits). At least one block, since a GPU buffer cannot be empty.
+/// no ray hits). Only the CPU reads them; the GPU binds a placeholder.
 pub fn leaf_blocks(indices: &[u32], triangles: &[Triangle]) -> Vec<TriBlock> {
     let width = BLOCK_WIDTH as usize;
-    let mut blocks: Vec<TriBlock> = indices
+    indices
         .par_chunks(width)
         .map(|ids| {
             let mut b = TriBlock::default();
@@ -243,11 +243,7 @@ pub fn leaf_blocks(indices: &[u32], triangles: &[Triangle]) -> Vec<TriBlock> {
             }
             b
         })
-        .collect();
-    if blocks.is_empty() {
-        blocks.push(TriBlock::default());
-    }
-    blocks
+        .collect()
 }
 
 /// An accumulated image: per pixel the radiance sum in `xyz` and the count of zeroed

@@ -68,15 +68,12 @@ fn flush(x: f32) -> f32 {
     }
 }
 
-/// `1/x`, or 0 for `x == 0`: the division runs either way and the zero is selected after, so
-/// a CPU does not branch on the direction.
 #[inline]
 fn recip(x: f32) -> f32 {
-    let r = 1.0 / x;
     if x == 0.0 {
         0.0
     } else {
-        r
+        1.0 / x
     }
 }
 
@@ -88,34 +85,37 @@ pub(crate) fn safe_reciprocal(d: Vec3) -> Vec3 {
 
 /// Slab test against the scene box; `None` when the ray misses it within (t_min, t_max).
 /// The exit distance is widened by 2γ(3) (pbrt-v4 `Bounds3::IntersectP`) so a triangle lying on
-/// the box face is not lost to rounding. An axis the ray runs parallel to (`d == 0`, whose slab
-/// distances are meaningless) only asks whether the origin lies inside its slab; every axis is
-/// evaluated and the verdict taken once, which leaves the direction's signs nothing to branch on.
+/// the box face is not lost to rounding.
 #[inline]
 pub fn clip_to_bounds(lo: Vec3, hi: Vec3, origin: Vec3, dir: Vec3, inv: Vec3, t_min: f32, t_max: f32) -> Option<(f32, f32)> {
     let mut t0 = t_min;
     let mut t1 = t_max;
-    let mut outside = false;
     let mut a = 0;
     while a < 3 {
         let o = axis(origin, a);
+        let d = axis(dir, a);
         let (l, h) = (axis(lo, a), axis(hi, a));
-        let i = axis(inv, a);
-        let parallel = axis(dir, a) == 0.0;
-        let t_lo = (l - o) * i;
-        let t_hi = (h - o) * i;
-        let near = if t_lo > t_hi { t_hi } else { t_lo };
-        let far = if t_lo > t_hi { t_lo } else { t_hi } * (1.0 + 2.0 * gamma(3));
-        t0 = if !parallel & (near > t0) { near } else { t0 };
-        t1 = if !parallel & (far < t1) { far } else { t1 };
-        outside |= parallel & ((o < l) | (o > h));
+        if d == 0.0 {
+            if (o < l) | (o > h) {
+                return None;
+            }
+        } else {
+            let i = axis(inv, a);
+            let mut near = (l - o) * i;
+            let mut far = (h - o) * i;
+            if near > far {
+                core::mem::swap(&mut near, &mut far);
+            }
+            far *= 1.0 + 2.0 * gamma(3);
+            t0 = if near > t0 { near } else { t0 };
+            t1 = if far < t1 { far } else { t1 };
+            if t0 > t1 {
+                return None;
+            }
+        }
         a += 1;
     }
-    if outside | (t0 > t1) {
-        None
-    } else {
-        Some((t0, t1))
-    }
+    Some((t0, t1))
 }
 
 /// Whether a node the ray enters at `t_min` may still hold a hit closer than `best_t`: the cull

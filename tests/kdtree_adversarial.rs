@@ -232,7 +232,7 @@ fn sah_tree_is_cheaper_than_the_median_tree() {
     assert!(sah.sah_cost < 0.75 * median.sah_cost);
 }
 
-/// The CPU's defaults (a leaf test covers four triangles) and the GPU's (`for_gpu`: one
+/// The CPU's defaults (a leaf test covers eight triangles) and the GPU's (`for_gpu`: one
 /// triangle per test, Wald & Havran's costs) must each give the tree that is cheaper under their
 /// own cost model: the block width reaches the sweep's cost function and the termination rule.
 #[test]
@@ -287,7 +287,7 @@ fn unaligned_leaves_are_laid_out_anew_and_stay_exact() {
     assert!(hits > 10_000, "too few hits: {hits}");
 }
 
-/// The CPU's four-lane leaf test against the one-by-one test the GPU runs, leaf by leaf on the
+/// The CPU's eight-lane leaf test against the one-by-one test the GPU runs, leaf by leaf on the
 /// bunny's tree (empty leaves, whose runs need not start a block, included): the same hit, the
 /// same count of tests and the same verdict, for closest and any hit.
 #[test]

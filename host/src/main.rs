@@ -264,7 +264,7 @@ fn settings(a: &ImageArgs, loaded: &Loaded) -> Result<RenderSettings> {
     Ok(s)
 }
 
-/// The tree's build settings for the device that traverses it: the CPU tests leaves four
+/// The tree's build settings for the device that traverses it: the CPU tests leaves eight
 /// triangles at a time, a GPU thread one by one (`kdbuild::BuildSettings::for_gpu`).
 fn build_settings(device: Device) -> kdbuild::BuildSettings {
     match device {

@@ -150,7 +150,7 @@ pub struct Compiled {
     pub tree: KdTree,
     /// The light table padded to at least one entry (GPU buffers cannot be empty).
     pub lights: Vec<Light>,
-    /// The triangles of `tree.indices` in blocks of four, for the SIMD leaf test
+    /// The triangles of `tree.indices` in blocks of `BLOCK_WIDTH`, for the SIMD leaf test
     /// (`shared::layout::TriBlock`); derived from the tree, never stored.
     pub blocks: Vec<TriBlock>,
     /// World position of the scene's coordinate origin (`local_frame`): the scene and its tree

@@ -10,9 +10,11 @@
 //! its entry distance, lowered by `T_SLACK`, exceeds the closest hit so far. Together with a
 //! conservative triangle placement by the builder this returns exactly the hit that testing every
 //! triangle returns (`intersect_brute_force`), bit for bit, because every triangle test performs
-//! the operations of `RayShear::intersect` (the CPU's four-lane `intersect4` lane by lane).
+//! the operations of `RayShear::intersect` (the CPU's eight-lane `intersect_block` lane by lane).
 use crate::glam::Vec3;
-use crate::layout::{KdNode, BLOCK_WIDTH, KD_MAX_DEPTH, NO_HIT};
+use crate::layout::{KdNode, KD_MAX_DEPTH, NO_HIT};
+#[cfg(not(target_arch = "spirv"))]
+use crate::layout::BLOCK_WIDTH;
 use crate::numerics::{gamma, is_finite3, T_SLACK};
 use crate::scene::SceneView;
 use crate::triangle::RayShear;
@@ -154,8 +156,8 @@ pub(crate) fn ray_start(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32) 
 /// triangle of the leaf's run that the ray hits. Leaf intervals do not clip the test: a hit
 /// anywhere in (0, best.t) counts, which is what makes the result equal brute force.
 ///
-/// A CPU tests four triangles at a time in SIMD lanes (`test_leaf_blocks`); a GPU thread would
-/// execute the four lanes one after another, so it tests the leaf's triangles one by one
+/// A CPU tests `BLOCK_WIDTH` (eight) triangles at a time in SIMD lanes (`test_leaf_blocks`); a
+/// GPU thread would execute the lanes one after another, so it tests the leaf's triangles one by one
 /// (`test_leaf_each`). Both return the same hit and the same counts (tested against each other).
 #[inline]
 pub(crate) fn test_leaf(scene: &SceneView, shear: &RayShear, n: KdNode, best: &mut Hit, tests: &mut u32, any_hit: bool) -> bool {
@@ -184,11 +186,12 @@ pub fn test_leaf_each(scene: &SceneView, shear: &RayShear, n: KdNode, best: &mut
     done
 }
 
-/// `test_leaf` four triangles at a time (`TriBlock`, `RayShear::intersect4`), whole blocks
+/// `test_leaf` eight triangles at a time (`TriBlock`, `RayShear::intersect_block`), whole blocks
 /// without masks: the host lays the index list out so that every non-empty leaf's run starts a
 /// block and the lanes after its end repeat its last triangle (`kdbuild::align_leaves` in the
 /// host). A repeat hits at the same distance as the real lane before it, which wins the tie, so
 /// the hit and the counts are `test_leaf_each`'s.
+#[cfg(not(target_arch = "spirv"))]
 #[inline]
 pub fn test_leaf_blocks(scene: &SceneView, shear: &RayShear, n: KdNode, best: &mut Hit, tests: &mut u32, any_hit: bool) -> bool {
     let start = n.first_index();
@@ -199,7 +202,7 @@ pub fn test_leaf_blocks(scene: &SceneView, shear: &RayShear, n: KdNode, best: &m
     let past = if start == end { k } else { end.div_ceil(BLOCK_WIDTH) };
     let mut done = false;
     while (k < past) & !done {
-        if let Some((lane, h)) = shear.intersect4(&scene.blocks[k as usize], ALL_LANES, 0.0, best.t, any_hit) {
+        if let Some((lane, h)) = shear.intersect_block(&scene.blocks[k as usize], ALL_LANES, 0.0, best.t, any_hit) {
             let id = scene.indices[(k * BLOCK_WIDTH + lane) as usize];
             *best = Hit { t: h.t, triangle: id, u: h.u, v: h.v, w: h.w, nodes: 0, tests: 0 };
             done = any_hit;
@@ -209,7 +212,8 @@ pub fn test_leaf_blocks(scene: &SceneView, shear: &RayShear, n: KdNode, best: &m
     done
 }
 
-/// `intersect4`'s lane mask for all four lanes.
+/// `intersect_block`'s lane mask for all lanes.
+#[cfg(not(target_arch = "spirv"))]
 const ALL_LANES: u32 = (1 << BLOCK_WIDTH) - 1;
 
 /// The step at one interior node: the child to visit now, the end of the ray's interval in it,

@@ -18,23 +18,33 @@ pub struct Triangle {
     pub v2: Vec4,
 }
 
-/// Triangles tested together by the leaf test (`triangle::RayShear::intersect4`).
-pub const BLOCK_WIDTH: u32 = 4;
+/// Triangles tested together by the CPU's leaf test (`triangle::RayShear::intersect_block`):
+/// eight, one per lane of an AVX register (two SSE registers where AVX is missing).
+pub const BLOCK_WIDTH: u32 = 8;
 
-/// Four consecutive entries of the leaf index list, transposed so that one SIMD lane holds one
-/// triangle: `v[3·j + a]` holds axis `a` (0 = x) of vertex `j` for the four triangles. Block `k`
-/// holds the triangles of index entries `4k .. 4k + 4`; the builders start every leaf at a
-/// multiple of four, so a leaf of up to four triangles is one block test. Indexing by axis is
-/// an address offset, so the per-ray axis permutation of the watertight test needs no selects.
+/// `BLOCK_WIDTH` consecutive entries of the leaf index list, transposed so that one SIMD lane
+/// holds one triangle: `v[3·j + a][lane]` holds axis `a` (0 = x) of vertex `j`. Block `k` holds
+/// the triangles of index entries `8k .. 8k + 8`; the builders start every leaf at a multiple of
+/// eight, so a leaf of up to eight triangles is one block test. Indexing by axis is an address
+/// offset, so the per-ray axis permutation of the watertight test needs no selects. Aligned to
+/// the 32 bytes of an AVX load on the CPU; the GPU never reads it.
 #[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(not(target_arch = "spirv"), repr(align(32)))]
+#[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(not(target_arch = "spirv"), derive(bytemuck::Pod, bytemuck::Zeroable))]
 pub struct TriBlock {
-    pub v: [Vec4; 9],
+    pub v: [[f32; BLOCK_WIDTH as usize]; 9],
+}
+
+impl Default for TriBlock {
+    #[inline]
+    fn default() -> Self {
+        Self { v: [[0.0; BLOCK_WIDTH as usize]; 9] }
+    }
 }
 
 impl TriBlock {
-    /// Puts `t` into lane `lane` (0..4).
+    /// Puts `t` into lane `lane` (0..BLOCK_WIDTH).
     #[cfg(not(target_arch = "spirv"))]
     #[inline]
     pub fn set_lane(&mut self, lane: usize, t: &Triangle) {

@@ -9,6 +9,9 @@
 //! polynomial sin/cos (`trig`); finiteness tested by bit pattern (`numerics`); no expression of the
 //! form `1 - a - b` that the SPIR-V optimiser may reassociate.
 #![cfg_attr(not(test), no_std)]
+// The CPU's eight-lane leaf test (`triangle::RayShear::intersect_block`) uses `core::simd`
+// (the pinned nightly that rust-gpu needs has it); SPIR-V builds never see it.
+#![cfg_attr(not(target_arch = "spirv"), feature(portable_simd))]
 
 pub use spirv_std::glam;
 

@@ -8,7 +8,8 @@ pub struct SceneView<'a> {
     pub nodes: &'a [KdNode],
     /// Triangle ids of all leaves, each leaf a contiguous run.
     pub indices: &'a [u32],
-    /// The triangles of `indices` in blocks of four (`TriBlock`), what the leaf test reads.
+    /// The triangles of `indices` in blocks of `BLOCK_WIDTH` (`TriBlock`), what the CPU's leaf
+    /// test reads.
     pub blocks: &'a [TriBlock],
     pub triangles: &'a [Triangle],
     pub info: &'a [TriangleInfo],

@@ -6,8 +6,10 @@
 //! in both (negated), so a ray can never pass between them. A zero edge function counts as inside
 //! for both neighbours: rays through edges and vertices hit at least one triangle.
 //! No f64 fallback: not every GPU has `Float64`, and the zero case is already closed.
-use crate::glam::{Vec3, Vec4};
-use crate::layout::{TriBlock, Triangle};
+use crate::glam::Vec3;
+use crate::layout::Triangle;
+#[cfg(not(target_arch = "spirv"))]
+use crate::layout::{TriBlock, BLOCK_WIDTH};
 use crate::numerics::gamma;
 use crate::vecmath::{axis, xyz};
 
@@ -15,7 +17,8 @@ use crate::vecmath::{axis, xyz};
 #[derive(Clone, Copy)]
 pub struct RayShear {
     pub origin: Vec3,
-    /// The origin's components in the order kx, ky, kz.
+    /// The origin's components in the order kx, ky, kz (for the CPU's block test).
+    #[cfg_attr(target_arch = "spirv", allow(dead_code))]
     origin_k: Vec3,
     kx: u32,
     ky: u32,
@@ -96,61 +99,71 @@ impl RayShear {
     }
 }
 
-/// One vertex of four triangles in the sheared frame: (x, y) after the shear and the distance
-/// coordinate before scaling, lane by lane the same operations as `RayShear::intersect`.
+/// One SIMD register of the CPU's leaf test: a lane per triangle of a `TriBlock`.
+#[cfg(not(target_arch = "spirv"))]
+type Lanes = core::simd::Simd<f32, { BLOCK_WIDTH as usize }>;
+
+/// One vertex of a block's triangles in the sheared frame: (x, y) after the shear and the
+/// distance coordinate before scaling, lane by lane the same operations as `RayShear::intersect`.
+#[cfg(not(target_arch = "spirv"))]
 #[inline]
-fn sheared4(b: &TriBlock, j: usize, k: (usize, usize, usize), o: (Vec4, Vec4, Vec4), s: (Vec4, Vec4)) -> (Vec4, Vec4, Vec4) {
-    let kz = b.v[3 * j + k.2] - o.2;
-    let x = (b.v[3 * j + k.0] - o.0) - s.0 * kz;
-    let y = (b.v[3 * j + k.1] - o.1) - s.1 * kz;
+fn sheared_lanes(b: &TriBlock, j: usize, k: (usize, usize, usize), o: (Lanes, Lanes, Lanes), s: (Lanes, Lanes)) -> (Lanes, Lanes, Lanes) {
+    let kz = Lanes::from_array(b.v[3 * j + k.2]) - o.2;
+    let x = (Lanes::from_array(b.v[3 * j + k.0]) - o.0) - s.0 * kz;
+    let y = (Lanes::from_array(b.v[3 * j + k.1]) - o.1) - s.1 * kz;
     (x, y, kz)
 }
 
+#[cfg(not(target_arch = "spirv"))]
 impl RayShear {
-    /// `intersect` on the four triangles of `b` at once, one per SIMD lane, considering only the
-    /// lanes set in the bitmask `lanes`. Returns the lane with the smallest distance in
+    /// `intersect` on the `BLOCK_WIDTH` triangles of `b` at once, one per SIMD lane, considering
+    /// only the lanes set in the bitmask `lanes`. Returns the lane with the smallest distance in
     /// (t_min, t_max), the lowest such lane on a tie, and its hit: exactly what testing the
     /// lanes one after another with `intersect`, narrowing t_max, returns, since every lane
-    /// performs `intersect`'s operations in its order (IEEE single precision, no fused ops).
+    /// performs `intersect`'s operations in its order (IEEE single precision, no fused ops:
+    /// `core::simd` never contracts a multiply and an add).
     /// With `first`, the lowest lane that hits (what a one-by-one any-hit test stops at).
     #[inline]
-    pub fn intersect4(&self, b: &TriBlock, lanes: u32, t_min: f32, t_max: f32, first: bool) -> Option<(u32, TriangleHit)> {
+    pub fn intersect_block(&self, b: &TriBlock, lanes: u32, t_min: f32, t_max: f32, first: bool) -> Option<(u32, TriangleHit)> {
+        use core::simd::cmp::{SimdPartialEq, SimdPartialOrd};
         // The axes are below 3 by construction; saying so lets the compiler drop the bounds
         // checks of the nine loads.
         let k = ((self.kx as usize).min(2), (self.ky as usize).min(2), (self.kz as usize).min(2));
-        let o = (Vec4::splat(self.origin_k.x), Vec4::splat(self.origin_k.y), Vec4::splat(self.origin_k.z));
-        let s = (Vec4::splat(self.sx), Vec4::splat(self.sy));
-        let (ax, ay, akz) = sheared4(b, 0, k, o, s);
-        let (bx, by, bkz) = sheared4(b, 1, k, o, s);
-        let (cx, cy, ckz) = sheared4(b, 2, k, o, s);
+        let o = (Lanes::splat(self.origin_k.x), Lanes::splat(self.origin_k.y), Lanes::splat(self.origin_k.z));
+        let s = (Lanes::splat(self.sx), Lanes::splat(self.sy));
+        let (ax, ay, akz) = sheared_lanes(b, 0, k, o, s);
+        let (bx, by, bkz) = sheared_lanes(b, 1, k, o, s);
+        let (cx, cy, ckz) = sheared_lanes(b, 2, k, o, s);
         let u = cx * by - cy * bx;
         let v = ax * cy - ay * cx;
         let w = bx * ay - by * ax;
-        let zero = Vec4::ZERO;
-        let any_neg = u.cmplt(zero) | v.cmplt(zero) | w.cmplt(zero);
-        let any_pos = u.cmpgt(zero) | v.cmpgt(zero) | w.cmpgt(zero);
+        let zero = Lanes::splat(0.0);
+        let any_neg = u.simd_lt(zero) | v.simd_lt(zero) | w.simd_lt(zero);
+        let any_pos = u.simd_gt(zero) | v.simd_gt(zero) | w.simd_gt(zero);
         let det = u + v + w;
         // Most blocks a ray tests hold no triangle it passes through: leave before the division.
-        let inside = (!(any_neg & any_pos) & det.cmpne(zero)).bitmask() & lanes;
+        let inside = (!(any_neg & any_pos) & det.simd_ne(zero)).to_bitmask() as u32 & lanes;
         if inside == 0 {
             return None;
         }
-        let sz = Vec4::splat(self.sz);
+        let sz = Lanes::splat(self.sz);
         let t_scaled = u * (sz * akz) + v * (sz * bkz) + w * (sz * ckz);
         let t = t_scaled / det;
-        let mask = (t.cmpgt(Vec4::splat(t_min)) & t.cmplt(Vec4::splat(t_max))).bitmask() & inside;
+        let mask = (t.simd_gt(Lanes::splat(t_min)) & t.simd_lt(Lanes::splat(t_max))).to_bitmask() as u32 & inside;
         if mask == 0 {
             return None;
         }
         let ts = t.to_array();
         let mut lane = mask.trailing_zeros();
         if !first {
-            let mut l = lane + 1;
-            while l < 4 {
-                if ((mask >> l) & 1 == 1) & (ts[l as usize] < ts[lane as usize]) {
+            // The other hitting lanes, lowest first; a later lane wins only when strictly closer.
+            let mut rest = mask & (mask - 1);
+            while rest != 0 {
+                let l = rest.trailing_zeros();
+                if ts[l as usize] < ts[lane as usize] {
                     lane = l;
                 }
-                l += 1;
+                rest &= rest - 1;
             }
         }
         let i = lane as usize;
@@ -261,11 +274,13 @@ mod tests {
         }
     }
 
-    /// `intersect4` against `intersect` lane by lane: random and adversarial triangles (shared
-    /// edges, duplicates for exact ties, degenerate ones, the zero lane), every lane mask, both
-    /// selection rules; the hit must be bit for bit the one-by-one test's.
+    /// `intersect_block` against `intersect` lane by lane: random and adversarial triangles
+    /// (shared edges, duplicates for exact ties, degenerate ones, the zero lane), every lane mask
+    /// of the low four lanes and of the high four with a random rest, both selection rules; the
+    /// hit must be bit for bit the one-by-one test's.
     #[test]
-    fn four_lanes_equal_one_by_one() {
+    fn block_lanes_equal_one_by_one() {
+        const W: usize = BLOCK_WIDTH as usize;
         let mut state = 0x2545_f491u32;
         let mut next = move || {
             state ^= state << 13;
@@ -277,7 +292,7 @@ mod tests {
         for case in 0..4000 {
             let mut r = || next() * 2.0 - 1.0;
             let base = tri([r(), r(), r()], [r(), r(), r()], [r(), r(), r()]);
-            let mut lanes = [base; 4];
+            let mut lanes = [base; W];
             for (l, lane) in lanes.iter_mut().enumerate() {
                 *lane = match (case + l) % 5 {
                     0 => base,
@@ -288,7 +303,7 @@ mod tests {
                 };
             }
             if case % 2 == 0 {
-                lanes[(case / 2) % 4] = lanes[(case / 8 + 1) % 4]; // an exact tie, or a repeat
+                lanes[(case / 2) % W] = lanes[(case / 8 + 1) % W]; // an exact tie, or a repeat
             }
             let mut block = TriBlock::default();
             for (l, t) in lanes.iter().enumerate() {
@@ -302,10 +317,12 @@ mod tests {
             }
             let shear = RayShear::new(o, d);
             let t_max = if case % 3 == 0 { f32::INFINITY } else { next() * 4.0 };
-            for mask in 0..16u32 {
+            let rest = (next() * 256.0) as u32 & 0xff;
+            let masks = (0..16u32).map(|m| m | (rest & !0xf)).chain((0..16u32).map(|m| (m << 4) | (rest & 0xf)));
+            for mask in masks {
                 for first in [false, true] {
                     let mut want: Option<(u32, TriangleHit)> = None;
-                    for l in 0..4u32 {
+                    for l in 0..W as u32 {
                         if (mask >> l) & 1 == 0 || (first && want.is_some()) {
                             continue;
                         }
@@ -314,9 +331,9 @@ mod tests {
                             want = Some((l, h));
                         }
                     }
-                    let got = shear.intersect4(&block, mask, 0.0, t_max, first);
+                    let got = shear.intersect_block(&block, mask, 0.0, t_max, first);
                     let key = |x: Option<(u32, TriangleHit)>| x.map(|(l, h)| (l, h.t.to_bits(), h.u.to_bits(), h.v.to_bits(), h.w.to_bits()));
-                    assert_eq!(key(got), key(want), "case {case} mask {mask:04b} first {first}");
+                    assert_eq!(key(got), key(want), "case {case} mask {mask:08b} first {first}");
                     checked += want.is_some() as u32;
                 }
             }

@@ -29,7 +29,7 @@ pub enum Builder {
     Median,
 }
 
-/// How to build the tree. The defaults are for the CPU's four-lane leaf test (`for_gpu` for a
+/// How to build the tree. The defaults are for the CPU's eight-lane leaf test (`for_gpu` for a
 /// GPU's one-by-one test), with Wald & Havran's K_T and the seed's λ.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -37,12 +37,12 @@ pub struct BuildSettings {
     pub builder: Builder,
     /// K_T, the cost of one traversal step (default 15).
     pub traversal_cost: f32,
-    /// K_I, the cost of one leaf test of up to `leaf_block` triangles (default 4: a four-lane
+    /// K_I, the cost of one leaf test of up to `leaf_block` triangles (default 4: an eight-lane
     /// test measured about a quarter of a node step on the CPU; `for_gpu`: 20 per triangle,
     /// Wald & Havran's).
     pub intersection_cost: f32,
-    /// Triangles one leaf test covers in the SAH (default 4, `shared::layout::BLOCK_WIDTH`: the
-    /// CPU tests a leaf's triangles four at a time in SIMD lanes, so a leaf of 1 to 4 costs one
+    /// Triangles one leaf test covers in the SAH (default 8, `shared::layout::BLOCK_WIDTH`: the
+    /// CPU tests a leaf's triangles eight at a time in SIMD lanes, so a leaf of 1 to 8 costs one
     /// test). 1 counts every triangle, Wald & Havran's model and how a GPU thread tests them.
     pub leaf_block: u32,
     /// λ, the factor on the cost of a split with one empty side whose plane is not on the
@@ -143,7 +143,7 @@ pub fn build(triangles: &[Triangle], bounds_min: Vec3, bounds_max: Vec3, setting
 }
 
 /// Lays the index list out for the CPU's leaf test (`shared::kdtree::test_leaf_blocks`), which
-/// tests whole blocks of four entries without masking lanes: every non-empty leaf's run starts
+/// tests whole blocks of `BLOCK_WIDTH` entries without masking lanes: every non-empty leaf's run starts
 /// at a multiple of `BLOCK_WIDTH`, and the entries after a run up to the next multiple repeat the
 /// run's last triangle (the list's length is a multiple too). A repeated triangle hits at the
 /// same distance as its first copy, which comes first and wins the tie, so the extra lanes never

@@ -2,11 +2,13 @@
 //! below child adjacent, leaves as runs of one index list) and the traversal
 //! (`shared::kdtree`) are shared with the GPU kernel; only building happens here.
 //!
-//! - `sah`: Wald & Havran's O(N log N) SAH build with perfect splits (the default).
+//! - `sah`: Wald & Havran's O(N log N) SAH build with perfect splits (the default);
+//!   `event_sort` sorts its events.
 //! - `median`: spatial-median splits, a baseline for benchmarks.
 //! - `validate`: checks every invariant the traversal relies on.
 //! - `stats`: node and reference counts and the tree's SAH cost.
 mod clip;
+mod event_sort;
 mod median;
 mod sah;
 mod stats;

@@ -1,7 +1,8 @@
 //! SAH k-d tree construction in O(N log N): Wald & Havran, "On building fast kd-Trees for Ray
 //! Tracing, and on doing that in O(N log N)", IEEE Symposium on Interactive Ray Tracing 2006.
 //!
-//! - Events (start, end, or planar for a box flat on that axis) are sorted once per axis; every
+//! - Events (start, end, or planar for a box flat on that axis) are sorted once per axis (a radix
+//!   sort on position and kind, `event_sort`); every
 //!   split partitions the sorted lists in O(N) without re-sorting (§5.3). Only the events of
 //!   triangles that straddle the plane are made anew, from their clipped boxes (perfect splits,
 //!   §4.3), and sorted and merged in: O(N log N) in all.
@@ -23,7 +24,7 @@
 //!   is kept off that path: lists come from per-thread pools, a split with one empty side hands
 //!   its lists to the other child unchanged, and a child that will be a leaf gets no events.
 use super::clip::{clipped_box, clipped_box_with, Aabb, ClipBuffers, Tri64};
-use super::{BuildSettings, KdTree};
+use super::{event_sort, BuildSettings, KdTree};
 use rayon::prelude::*;
 use shared::layout::KdNode;
 use std::cmp::Ordering;
@@ -60,6 +61,11 @@ impl Event {
 /// Sweep order: by position, then end < planar < start (Wald & Havran §5.1).
 fn order(a: &Event, b: &Event) -> Ordering {
     a.pos.total_cmp(&b.pos).then((a.key & 3).cmp(&(b.key & 3)))
+}
+
+/// Sorts events in sweep order (`order`): a radix sort for long lists (`event_sort`).
+fn sort_events(list: &mut Vec<Event>, tmp: &mut Vec<Event>) {
+    event_sort::sort_by_key34(list, tmp, |e| event_sort::key(e.pos, e.kind()), order);
 }
 
 fn push_events(events: &mut [Vec<Event>; 3], reference: usize, b: &Aabb) {
@@ -110,6 +116,8 @@ struct Scratch {
     triangle_lists: Vec<Vec<u32>>,
     code: Vec<u32>,
     fresh: [[Vec<Event>; 3]; 2],
+    /// The radix sort's second buffer.
+    sort: Vec<Event>,
     clip: ClipBuffers,
 }
 
@@ -260,7 +268,7 @@ pub fn build(triangles: &[Tri64], bounds: Aabb, settings: &BuildSettings, max_de
             root.triangles.push(id as u32);
         }
     }
-    root.events.par_iter_mut().for_each(|list| list.par_sort_unstable_by(order));
+    root.events.par_iter_mut().for_each(|list| sort_events(list, &mut Vec::new()));
     let part = sah.build_parallel(root);
     let (nodes, indices) = part.size();
     let mut out = Subtree { nodes: Vec::with_capacity(nodes), indices: Vec::with_capacity(indices), depth: 0 };
@@ -278,7 +286,13 @@ impl Sah<'_> {
     /// Leaf tests for `n` triangles (`BuildSettings::leaf_tests`).
     #[inline]
     fn leaf_tests(&self, n: usize) -> f64 {
-        n.div_ceil(self.leaf_block) as f64
+        // A division by a width known only at run time is tens of cycles, and the sweep asks
+        // up to four times per candidate plane; the widths in use are powers of two.
+        if self.leaf_block.is_power_of_two() {
+            ((n + self.leaf_block - 1) >> self.leaf_block.trailing_zeros()) as f64
+        } else {
+            n.div_ceil(self.leaf_block) as f64
+        }
     }
 
     fn build_parallel(&self, node: Node) -> Part {
@@ -491,20 +505,32 @@ impl Sah<'_> {
                 [true, true] => {
                     // Every event is written to both lists and kept by the side it belongs to:
                     // the side is as good as random in the large nodes, where a branch on it
-                    // mispredicts.
-                    below.resize(old.len(), Event { pos: 0.0, key: 0 });
-                    above.resize(old.len(), Event { pos: 0.0, key: 0 });
+                    // mispredicts. The lists are written into their spare capacity, not zeroed
+                    // to the parent's length first: only the slots a child keeps (and one past)
+                    // are touched (the zeroing was half of the build's page faults).
+                    debug_assert!(below.is_empty() && above.is_empty());
+                    below.reserve(old.len());
+                    above.reserve(old.len());
                     let (mut nb, mut na) = (0, 0);
-                    for e in &old {
-                        let c = code[e.reference()];
-                        let m = moved(e, c);
-                        below[nb] = m;
-                        above[na] = m;
-                        nb += (c < ABOVE_BIT) as usize;
-                        na += (c >= ABOVE_BIT && c != STRADDLES) as usize;
+                    {
+                        let (bs, as_) = (&mut below.spare_capacity_mut()[..old.len()], &mut above.spare_capacity_mut()[..old.len()]);
+                        for e in &old {
+                            let c = code[e.reference()];
+                            let m = moved(e, c);
+                            // nb and na count kept events so far: below old.len() here.
+                            bs[nb].write(m);
+                            as_[na].write(m);
+                            nb += (c < ABOVE_BIT) as usize;
+                            na += (c >= ABOVE_BIT && c != STRADDLES) as usize;
+                        }
                     }
-                    below.truncate(nb);
-                    above.truncate(na);
+                    // SAFETY: the loop wrote slots 0..nb of `below` and 0..na of `above` (each
+                    // kept event's slot is written before its count moves past it), and both
+                    // lists were empty, so their first nb and na elements are initialised.
+                    unsafe {
+                        below.set_len(nb);
+                        above.set_len(na);
+                    }
                 }
                 [true, false] => below.extend(old.iter().filter_map(|e| Some(code[e.reference()]).filter(|&c| c < ABOVE_BIT).map(|c| moved(e, c)))),
                 [false, true] => above.extend(old.iter().filter_map(|e| Some(code[e.reference()]).filter(|&c| c >= ABOVE_BIT && c != STRADDLES).map(|c| moved(e, c)))),
@@ -515,7 +541,7 @@ impl Sah<'_> {
             for (s, mut list) in out.into_iter().enumerate() {
                 let new = &mut fresh[s][axis];
                 if !new.is_empty() {
-                    new.sort_unstable_by(order);
+                    sort_events(new, &mut scratch.sort);
                     merge_into(&mut list, new);
                     new.clear();
                 }

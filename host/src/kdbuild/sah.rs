@@ -9,7 +9,7 @@
 //! - One sweep per axis finds the plane of least cost over every candidate (§5.1); triangles lying
 //!   in the plane go to the side that makes the split cheaper (§4.2).
 //! - Cost C = λ·(K_T + K_I·(P_L·T(N_L) + P_R·T(N_R))), where T(N) = ⌈N / leaf_block⌉ counts the
-//!   leaf tests (4 triangles each by default, the SIMD leaf test; 1 gives the paper's N), with λ = `empty_factor` (0.8) when one side is
+//!   leaf tests (8 triangles each by default, the SIMD leaf test; 1 gives the paper's N), with λ = `empty_factor` (0.8) when one side is
 //!   empty and the plane is not flat on the voxel's boundary, else 1 (the project's seed).
 //! - A node becomes a leaf when no split is cheaper than K_I·T(N), with pbrt-v3's allowance for a
 //!   few splits that cost more ("bad refines", §4.4.2), at the depth limit, or when the split

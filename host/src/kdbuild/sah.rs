@@ -501,30 +501,61 @@ impl Sah<'_> {
         for (axis, old) in [old_x, old_y, old_z].into_iter().enumerate() {
             let (mut below, mut above) = (scratch.events(), scratch.events());
             let moved = |e: &Event, c: u32| Event { pos: e.pos, key: ((c & !ABOVE_BIT) << 2) | e.kind() };
+            for side in &mut fresh {
+                if !side[axis].is_empty() {
+                    sort_events(&mut side[axis], &mut scratch.sort);
+                }
+            }
+            let (fresh_below, fresh_above) = (&fresh[0][axis], &fresh[1][axis]);
             match need {
                 [true, true] => {
                     // Every event is written to both lists and kept by the side it belongs to:
                     // the side is as good as random in the large nodes, where a branch on it
                     // mispredicts. The lists are written into their spare capacity, not zeroed
                     // to the parent's length first: only the slots a child keeps (and one past)
-                    // are touched (the zeroing was half of the build's page faults).
+                    // are touched (the zeroing was half of the build's page faults). The
+                    // straddlers' fresh events, sorted, are merged in on the way, each after
+                    // the old events of its key, as `merge_into` would place them: one pass
+                    // instead of a partition and a merge that moves half of each list.
                     debug_assert!(below.is_empty() && above.is_empty());
-                    below.reserve(old.len());
-                    above.reserve(old.len());
-                    let (mut nb, mut na) = (0, 0);
+                    let (cap_b, cap_a) = (old.len() + fresh_below.len(), old.len() + fresh_above.len());
+                    below.reserve(cap_b);
+                    above.reserve(cap_a);
+                    let (mut nb, mut na, mut ib, mut ia) = (0, 0, 0, 0);
+                    let head_key = |list: &[Event], i: usize| list.get(i).map_or(u64::MAX, |e| event_sort::key(e.pos, e.kind()));
+                    let (mut kb, mut ka) = (head_key(fresh_below, 0), head_key(fresh_above, 0));
                     {
-                        let (bs, as_) = (&mut below.spare_capacity_mut()[..old.len()], &mut above.spare_capacity_mut()[..old.len()]);
+                        let (bs, as_) = (&mut below.spare_capacity_mut()[..cap_b], &mut above.spare_capacity_mut()[..cap_a]);
                         for e in &old {
+                            let k = event_sort::key(e.pos, e.kind());
+                            while kb < k {
+                                bs[nb].write(fresh_below[ib]);
+                                (nb, ib) = (nb + 1, ib + 1);
+                                kb = head_key(fresh_below, ib);
+                            }
+                            while ka < k {
+                                as_[na].write(fresh_above[ia]);
+                                (na, ia) = (na + 1, ia + 1);
+                                ka = head_key(fresh_above, ia);
+                            }
                             let c = code[e.reference()];
                             let m = moved(e, c);
-                            // nb and na count kept events so far: below old.len() here.
+                            // nb and na count the events written so far: below the capacities.
                             bs[nb].write(m);
                             as_[na].write(m);
                             nb += (c < ABOVE_BIT) as usize;
                             na += (c >= ABOVE_BIT && c != STRADDLES) as usize;
                         }
+                        for &f in &fresh_below[ib..] {
+                            bs[nb].write(f);
+                            nb += 1;
+                        }
+                        for &f in &fresh_above[ia..] {
+                            as_[na].write(f);
+                            na += 1;
+                        }
                     }
-                    // SAFETY: the loop wrote slots 0..nb of `below` and 0..na of `above` (each
+                    // SAFETY: the loops wrote slots 0..nb of `below` and 0..na of `above` (each
                     // kept event's slot is written before its count moves past it), and both
                     // lists were empty, so their first nb and na elements are initialised.
                     unsafe {
@@ -532,21 +563,22 @@ impl Sah<'_> {
                         above.set_len(na);
                     }
                 }
-                [true, false] => below.extend(old.iter().filter_map(|e| Some(code[e.reference()]).filter(|&c| c < ABOVE_BIT).map(|c| moved(e, c)))),
-                [false, true] => above.extend(old.iter().filter_map(|e| Some(code[e.reference()]).filter(|&c| c >= ABOVE_BIT && c != STRADDLES).map(|c| moved(e, c)))),
+                [true, false] => {
+                    below.extend(old.iter().filter_map(|e| Some(code[e.reference()]).filter(|&c| c < ABOVE_BIT).map(|c| moved(e, c))));
+                    merge_into(&mut below, fresh_below);
+                }
+                [false, true] => {
+                    above.extend(old.iter().filter_map(|e| Some(code[e.reference()]).filter(|&c| c >= ABOVE_BIT && c != STRADDLES).map(|c| moved(e, c))));
+                    merge_into(&mut above, fresh_above);
+                }
                 [false, false] => {}
             }
-            let out = [below, above];
             scratch.recycle_events(old);
-            for (s, mut list) in out.into_iter().enumerate() {
-                let new = &mut fresh[s][axis];
-                if !new.is_empty() {
-                    sort_events(new, &mut scratch.sort);
-                    merge_into(&mut list, new);
-                    new.clear();
-                }
-                events[s][axis] = list;
+            for side in &mut fresh {
+                side[axis].clear();
             }
+            events[0][axis] = below;
+            events[1][axis] = above;
         }
         scratch.code = code;
         scratch.fresh = fresh;

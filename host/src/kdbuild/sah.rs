@@ -107,13 +107,52 @@ struct Node {
     budget: f64,
 }
 
+/// Lists kept for reuse, bucketed by capacity: bucket b holds lists whose capacity lies in
+/// [2^b, 2^(b+1)). A list is handed out only to a need it covers within a factor of eight, so a
+/// big list freed near the root is not held (with all its pages) by a small node deep in the
+/// tree: with one unsorted pool, every pending sibling ended up holding a root-sized list and the
+/// conference room's build peaked at 400 MiB.
+struct Pool<T> {
+    buckets: Vec<Vec<Vec<T>>>,
+}
+
+impl<T> Default for Pool<T> {
+    fn default() -> Self {
+        Self { buckets: (0..usize::BITS).map(|_| Vec::new()).collect() }
+    }
+}
+
+impl<T> Pool<T> {
+    /// An empty list with room for at least `need` items.
+    fn take(&mut self, need: usize) -> Vec<T> {
+        if need == 0 {
+            return Vec::new();
+        }
+        let class = need.max(1).next_power_of_two().trailing_zeros() as usize;
+        for bucket in self.buckets.iter_mut().skip(class).take(3) {
+            if let Some(list) = bucket.pop() {
+                return list;
+            }
+        }
+        Vec::with_capacity(need.max(1).next_power_of_two())
+    }
+
+    fn give(&mut self, mut list: Vec<T>) {
+        if list.capacity() == 0 {
+            return;
+        }
+        list.clear();
+        self.buckets[list.capacity().ilog2() as usize].push(list);
+    }
+}
+
 /// Buffers one thread reuses from node to node: the deep tail of the tree is millions of nodes
 /// of a few references each, where allocating and freeing a dozen lists per split would cost
-/// more than the split itself. Lists freed by a node go back to the pool and serve the next.
+/// more than the split itself. Lists freed by a node go back to the pools and serve the next.
 #[derive(Default)]
 struct Scratch {
-    event_lists: Vec<Vec<Event>>,
-    triangle_lists: Vec<Vec<u32>>,
+    event_lists: Pool<Event>,
+    triangle_lists: Pool<u32>,
     code: Vec<u32>,
     fresh: [[Vec<Event>; 3]; 2],
     /// The radix sort's second buffer.
@@ -122,23 +161,21 @@ struct Scratch {
 }
 
 impl Scratch {
-    fn events(&mut self) -> Vec<Event> {
-        self.event_lists.pop().unwrap_or_default()
+    fn events(&mut self, need: usize) -> Vec<Event> {
+        self.event_lists.take(need)
     }
 
-    fn triangles(&mut self) -> Vec<u32> {
-        self.triangle_lists.pop().unwrap_or_default()
+    fn triangles(&mut self, need: usize) -> Vec<u32> {
+        self.triangle_lists.take(need)
     }
 
-    fn recycle_events(&mut self, mut list: Vec<Event>) {
-        list.clear();
-        self.event_lists.push(list);
+    fn recycle_events(&mut self, list: Vec<Event>) {
+        self.event_lists.give(list);
     }
 
     fn recycle(&mut self, node: Node) {
-        let Node { mut triangles, events, .. } = node;
-        triangles.clear();
-        self.triangle_lists.push(triangles);
+        let Node { triangles, events, .. } = node;
+        self.triangle_lists.give(triangles);
         for list in events {
             self.recycle_events(list);
         }
@@ -474,7 +511,7 @@ impl Sah<'_> {
         // references, or at the depth limit) gets none: over a third of the children are such.
         let depth = node.depth + 1;
         let need = [plane.below, plane.above].map(|count| count > self.leaf_size && depth < self.max_depth);
-        let mut tris: [Vec<u32>; 2] = [scratch.triangles(), scratch.triangles()];
+        let mut tris: [Vec<u32>; 2] = [scratch.triangles(plane.below), scratch.triangles(plane.above)];
         tris[0].reserve(plane.below);
         tris[1].reserve(plane.above);
         let mut fresh = std::mem::take(&mut scratch.fresh);
@@ -499,7 +536,6 @@ impl Sah<'_> {
         let mut events: [[Vec<Event>; 3]; 2] = Default::default();
         let Node { triangles: old_triangles, events: [old_x, old_y, old_z], voxel: _, depth: _, bad_refines: _, budget } = node;
         for (axis, old) in [old_x, old_y, old_z].into_iter().enumerate() {
-            let (mut below, mut above) = (scratch.events(), scratch.events());
             let moved = |e: &Event, c: u32| Event { pos: e.pos, key: ((c & !ABOVE_BIT) << 2) | e.kind() };
             for side in &mut fresh {
                 if !side[axis].is_empty() {
@@ -507,6 +543,10 @@ impl Sah<'_> {
                 }
             }
             let (fresh_below, fresh_above) = (&fresh[0][axis], &fresh[1][axis]);
+            // A child holds at most two events per reference on each axis; the partition below
+            // writes one slot past the events it keeps.
+            let (cap_b, cap_a) = ((old.len() + fresh_below.len()).min(2 * tris[0].len() + 1), (old.len() + fresh_above.len()).min(2 * tris[1].len() + 1));
+            let (mut below, mut above) = (scratch.events(if need[0] { cap_b } else { 0 }), scratch.events(if need[1] { cap_a } else { 0 }));
             match need {
                 [true, true] => {
                     // Every event is written to both lists and kept by the side it belongs to:
@@ -518,7 +558,6 @@ impl Sah<'_> {
                     // the old events of its key, as `merge_into` would place them: one pass
                     // instead of a partition and a merge that moves half of each list.
                     debug_assert!(below.is_empty() && above.is_empty());
-                    let (cap_b, cap_a) = (old.len() + fresh_below.len(), old.len() + fresh_above.len());
                     below.reserve(cap_b);
                     above.reserve(cap_a);
                     let (mut nb, mut na, mut ib, mut ia) = (0, 0, 0, 0);
@@ -584,7 +623,7 @@ impl Sah<'_> {
         scratch.fresh = fresh;
         let mut old_triangles = old_triangles;
         old_triangles.clear();
-        scratch.triangle_lists.push(old_triangles);
+        scratch.triangle_lists.give(old_triangles);
         let [below_tris, above_tris] = tris;
         let [below_events, above_events] = events;
         // The budget follows the references: each child gets its share, so no subtree can take

@@ -10,7 +10,7 @@
 
 /// A list shorter than this is sorted by comparisons: three passes over 2048-entry histograms
 /// cost more than sorting a few hundred events directly.
-const RADIX_MIN: usize = 512;
+pub const RADIX_MIN: usize = 512;
 
 /// Bits of the key per pass: 11 + 11 + 12 = 34.
 const PASSES: [(u32, u32); 3] = [(0, 11), (11, 11), (22, 12)];
@@ -24,6 +24,12 @@ fn ordered_bits(x: f32) -> u32 {
     } else {
         b | 0x8000_0000
     }
+}
+
+/// The position whose `ordered_bits` are `u`.
+#[inline]
+pub fn position_of(u: u32) -> f32 {
+    f32::from_bits(if u & 0x8000_0000 != 0 { u & 0x7fff_ffff } else { !u })
 }
 
 /// The sort key of a position and a 2-bit kind: by position, then kind.
@@ -94,6 +100,9 @@ mod tests {
         for w in xs.windows(2) {
             assert!(ordered_bits(w[0]) < ordered_bits(w[1]), "{} !< {}", w[0], w[1]);
             assert_eq!(w[0].total_cmp(&w[1]), ordered_bits(w[0]).cmp(&ordered_bits(w[1])));
+        }
+        for x in xs {
+            assert_eq!(position_of(ordered_bits(x)).to_bits(), x.to_bits(), "{x}");
         }
     }
 

@@ -64,8 +64,21 @@ fn order(a: &Event, b: &Event) -> Ordering {
 }
 
 /// Sorts events in sweep order (`order`): a radix sort for long lists (`event_sort`).
-fn sort_events(list: &mut Vec<Event>, tmp: &mut Vec<Event>) {
-    event_sort::sort_by_key34(list, tmp, |e| event_sort::key(e.pos, e.kind()), order);
+/// Short lists (the fresh events of most splits) are packed into one u64 each, position and kind
+/// above the reference, and sorted as integers: a third of the comparison sort's instructions.
+/// Events equal in position and kind come out by reference, an order the build does not depend
+/// on (see `event_sort`).
+fn sort_events(list: &mut Vec<Event>, tmp: &mut Vec<Event>, packed: &mut Vec<u64>) {
+    if list.len() >= event_sort::RADIX_MIN {
+        event_sort::sort_by_key34(list, tmp, |e| event_sort::key(e.pos, e.kind()), order);
+        return;
+    }
+    packed.clear();
+    packed.extend(list.iter().map(|e| (event_sort::key(e.pos, e.kind()) << 30) | e.reference() as u64));
+    packed.sort_unstable();
+    for (e, &p) in list.iter_mut().zip(packed.iter()) {
+        *e = Event { pos: event_sort::position_of((p >> 32) as u32), key: (((p & 0x3fff_ffff) as u32) << 2) | ((p >> 30) & 3) as u32 };
+    }
 }
 
 fn push_events(events: &mut [Vec<Event>; 3], reference: usize, b: &Aabb) {
@@ -155,8 +168,9 @@ struct Scratch {
     triangle_lists: Pool<u32>,
     code: Vec<u32>,
     fresh: [[Vec<Event>; 3]; 2],
-    /// The radix sort's second buffer.
+    /// The radix sort's second buffer, and the short sort's packed events.
     sort: Vec<Event>,
+    packed: Vec<u64>,
     clip: ClipBuffers,
 }
 
@@ -305,7 +319,7 @@ pub fn build(triangles: &[Tri64], bounds: Aabb, settings: &BuildSettings, max_de
             root.triangles.push(id as u32);
         }
     }
-    root.events.par_iter_mut().for_each(|list| sort_events(list, &mut Vec::new()));
+    root.events.par_iter_mut().for_each(|list| sort_events(list, &mut Vec::new(), &mut Vec::new()));
     let part = sah.build_parallel(root);
     let (nodes, indices) = part.size();
     let mut out = Subtree { nodes: Vec::with_capacity(nodes), indices: Vec::with_capacity(indices), depth: 0 };
@@ -539,7 +553,7 @@ impl Sah<'_> {
             let moved = |e: &Event, c: u32| Event { pos: e.pos, key: ((c & !ABOVE_BIT) << 2) | e.kind() };
             for side in &mut fresh {
                 if !side[axis].is_empty() {
-                    sort_events(&mut side[axis], &mut scratch.sort);
+                    sort_events(&mut side[axis], &mut scratch.sort, &mut scratch.packed);
                 }
             }
             let (fresh_below, fresh_above) = (&fresh[0][axis], &fresh[1][axis]);

@@ -650,3 +650,59 @@ impl Sah<'_> {
         )
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A pool hands out a list that covers the need, never one more than eight times too big
+    /// (the bound that keeps root-sized lists away from deep nodes), and reuses what it got.
+    #[test]
+    fn pool_hands_out_lists_that_fit_the_need() {
+        let mut pool: Pool<u32> = Pool::default();
+        assert_eq!(pool.take(0).capacity(), 0, "an empty need allocates nothing");
+        let big: Vec<u32> = Vec::with_capacity(1 << 20);
+        let big_ptr = big.as_ptr();
+        pool.give(big);
+        for need in [1usize, 100, 5000, (1 << 16) + 1] {
+            let list = pool.take(need);
+            assert!(list.capacity() >= need && list.is_empty());
+            assert!(list.capacity() <= 16 * need.next_power_of_two(), "need {need} got a list of {}", list.capacity());
+            assert_ne!(list.as_ptr(), big_ptr, "need {need} was given the root-sized list");
+        }
+        // Within a factor of eight the big list is reused, not a new one allocated.
+        let reused = pool.take((1 << 18) + 1);
+        assert_eq!(reused.as_ptr(), big_ptr);
+        let mut small = pool.take(10);
+        small.extend([1, 2, 3]);
+        let small_ptr = small.as_ptr();
+        pool.give(small);
+        let again = pool.take(9);
+        assert_eq!((again.as_ptr(), again.len()), (small_ptr, 0), "a given list comes back cleared");
+    }
+
+    /// Packed short sorts and the radix sort order events as `order` does.
+    #[test]
+    fn sort_events_follows_the_sweep_order() {
+        let mut state = 12345u32;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            state
+        };
+        let (mut tmp, mut packed) = (Vec::new(), Vec::new());
+        for n in [0usize, 3, 100, event_sort::RADIX_MIN + 7, 5000] {
+            let mut list: Vec<Event> = (0..n).map(|r| Event::new([-2.0f32, -0.0, 0.0, 0.5, 3.0][next() as usize % 5] * (1 + next() % 3) as f32, r, next() % 3)).collect();
+            let mut want = list.clone();
+            want.sort_by(order);
+            sort_events(&mut list, &mut tmp, &mut packed);
+            assert!(list.windows(2).all(|w| order(&w[0], &w[1]).is_le()), "n {n}: not sorted");
+            let key = |e: &Event| (e.pos.to_bits(), e.key);
+            let (mut a, mut b): (Vec<_>, Vec<_>) = (list.iter().map(key).collect(), want.iter().map(key).collect());
+            a.sort();
+            b.sort();
+            assert_eq!(a, b, "n {n}: not the same events");
+        }
+    }
+}

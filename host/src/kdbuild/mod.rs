@@ -135,10 +135,7 @@ pub fn build(triangles: &[Triangle], bounds_min: Vec3, bounds_max: Vec3, setting
     let max_depth = settings.depth_limit(triangles.len());
     let mut tree = match settings.builder {
         Builder::Median => median::build(triangles, bounds_min, bounds_max, settings.leaf_size.max(4), max_depth),
-        Builder::Sah => {
-            let tris: Vec<clip::Tri64> = triangles.iter().map(clip::to_f64).collect();
-            sah::build(&tris, Aabb { lo: bounds_min.to_array(), hi: bounds_max.to_array() }, &settings, max_depth)
-        }
+        Builder::Sah => sah::build(triangles, Aabb { lo: bounds_min.to_array(), hi: bounds_max.to_array() }, &settings, max_depth),
     };
     align_leaves(&mut tree);
     tree

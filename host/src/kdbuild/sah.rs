@@ -23,10 +23,10 @@
 //!   fewer than eight references, and half the splits cut off empty space), so the bookkeeping
 //!   is kept off that path: lists come from per-thread pools, a split with one empty side hands
 //!   its lists to the other child unchanged, and a child that will be a leaf gets no events.
-use super::clip::{clipped_box, clipped_box_with, Aabb, ClipBuffers, Tri64};
+use super::clip::{clipped_box, clipped_box_with, to_f64, Aabb, ClipBuffers};
 use super::{event_sort, BuildSettings, KdTree};
 use rayon::prelude::*;
-use shared::layout::KdNode;
+use shared::layout::{KdNode, Triangle};
 use std::cmp::Ordering;
 
 const END: u32 = 0;
@@ -289,7 +289,9 @@ impl Subtree {
 }
 
 struct Sah<'a> {
-    triangles: &'a [Tri64],
+    /// The scene's triangles, widened to f64 where they are clipped (exactly: every f32 is an
+    /// f64), so the build keeps no second, f64 copy of the scene.
+    triangles: &'a [Triangle],
     traversal_cost: f64,
     intersection_cost: f64,
     leaf_block: usize,
@@ -299,7 +301,7 @@ struct Sah<'a> {
     bad_refines: u32,
 }
 
-pub fn build(triangles: &[Tri64], bounds: Aabb, settings: &BuildSettings, max_depth: u32) -> KdTree {
+pub fn build(triangles: &[Triangle], bounds: Aabb, settings: &BuildSettings, max_depth: u32) -> KdTree {
     let sah = Sah {
         triangles,
         traversal_cost: settings.traversal_cost as f64,
@@ -310,7 +312,7 @@ pub fn build(triangles: &[Tri64], bounds: Aabb, settings: &BuildSettings, max_de
         leaf_size: settings.leaf_size as usize,
         bad_refines: settings.bad_refines,
     };
-    let boxes: Vec<Option<Aabb>> = triangles.par_iter().map(|t| clipped_box(t, &bounds)).collect();
+    let boxes: Vec<Option<Aabb>> = triangles.par_iter().map(|t| clipped_box(&to_f64(t), &bounds)).collect();
     let budget = if settings.max_refs_factor > 0.0 { settings.max_refs_factor as f64 * triangles.len().max(1) as f64 } else { f64::INFINITY };
     let mut root = Node { triangles: Vec::with_capacity(triangles.len()), events: Default::default(), voxel: bounds, depth: 0, bad_refines: 0, budget };
     for (id, b) in boxes.iter().enumerate() {
@@ -534,7 +536,7 @@ impl Sah<'_> {
             if *c == STRADDLES {
                 // Clipped to each child (perfect splits); a child it misses drops it.
                 for (s, voxel) in [below_voxel, above_voxel].iter().enumerate() {
-                    if let Some(b) = clipped_box_with(&self.triangles[t as usize], voxel, &mut scratch.clip) {
+                    if let Some(b) = clipped_box_with(&to_f64(&self.triangles[t as usize]), voxel, &mut scratch.clip) {
                         if need[s] {
                             push_events(&mut fresh[s], tris[s].len(), &b);
                         }

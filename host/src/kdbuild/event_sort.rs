@@ -8,8 +8,9 @@
 //! order (the sort is stable), which no caller relies on: the sweep counts runs of equal
 //! positions and the partition reads codes by reference.
 
-/// A list shorter than this is sorted by comparisons: three passes over 2048-entry histograms
-/// cost more than sorting a few hundred events directly.
+/// Lists shorter than this are better sorted otherwise (the builder packs them into integers,
+/// `sah::sort_events`): three passes over 2048-entry histograms cost more than sorting a few
+/// hundred events directly.
 pub const RADIX_MIN: usize = 512;
 
 /// Bits of the key per pass: 11 + 11 + 12 = 34.
@@ -39,13 +40,9 @@ pub fn key(pos: f32, kind: u32) -> u64 {
 }
 
 /// Sorts `items` by `key_of` (34-bit keys from `key`), stably; `tmp` is scratch space kept by
-/// the caller between calls.
-pub fn sort_by_key34<T: Copy>(items: &mut Vec<T>, tmp: &mut Vec<T>, key_of: impl Fn(&T) -> u64, compare: impl Fn(&T, &T) -> std::cmp::Ordering) {
+/// the caller between calls. Correct for any length, worth it from `RADIX_MIN` on.
+pub fn sort_by_key34<T: Copy>(items: &mut Vec<T>, tmp: &mut Vec<T>, key_of: impl Fn(&T) -> u64) {
     let n = items.len();
-    if n < RADIX_MIN {
-        items.sort_unstable_by(compare);
-        return;
-    }
     tmp.clear();
     tmp.reserve(n);
     let mut keys: Vec<u64> = items.iter().map(&key_of).collect();
@@ -107,7 +104,7 @@ mod tests {
     }
 
     /// Against a stable comparison sort on random lists with many ties (few distinct
-    /// positions, all kinds, both signs, zeros), on both sides of the radix threshold.
+    /// positions, all kinds, both signs, zeros), short and long.
     #[test]
     fn radix_sort_equals_a_stable_comparison_sort() {
         let mut state = 0x9e37_79b9_7f4a_7c15u64;
@@ -132,13 +129,9 @@ mod tests {
                 let mut want = items.clone();
                 want.sort_by(|a, b| cmp(a, b));
                 let mut got = items.clone();
-                sort_by_key34(&mut got, &mut tmp, |e| key(e.0, e.1), cmp);
-                if n >= RADIX_MIN {
-                    // Stable: ties keep their input order, exactly the stable sort's output.
-                    assert_eq!(got.iter().map(|e| e.2).collect::<Vec<_>>(), want.iter().map(|e| e.2).collect::<Vec<_>>(), "n {n} distinct {distinct}");
-                } else {
-                    assert!(got.windows(2).all(|w| cmp(&w[0], &w[1]).is_le()), "n {n} distinct {distinct}");
-                }
+                sort_by_key34(&mut got, &mut tmp, |e| key(e.0, e.1));
+                // Stable: ties keep their input order, exactly the stable sort's output.
+                assert_eq!(got.iter().map(|e| e.2).collect::<Vec<_>>(), want.iter().map(|e| e.2).collect::<Vec<_>>(), "n {n} distinct {distinct}");
                 let mut keys: Vec<_> = got.iter().map(|e| (e.0.to_bits(), e.1)).collect();
                 let mut wk: Vec<_> = want.iter().map(|e| (e.0.to_bits(), e.1)).collect();
                 keys.sort();

@@ -70,7 +70,7 @@ fn order(a: &Event, b: &Event) -> Ordering {
 /// on (see `event_sort`).
 fn sort_events(list: &mut Vec<Event>, tmp: &mut Vec<Event>, packed: &mut Vec<u64>) {
     if list.len() >= event_sort::RADIX_MIN {
-        event_sort::sort_by_key34(list, tmp, |e| event_sort::key(e.pos, e.kind()), order);
+        event_sort::sort_by_key34(list, tmp, |e| event_sort::key(e.pos, e.kind()));
         return;
     }
     packed.clear();
@@ -141,13 +141,13 @@ impl<T> Pool<T> {
         if need == 0 {
             return Vec::new();
         }
-        let class = need.max(1).next_power_of_two().trailing_zeros() as usize;
+        let class = need.next_power_of_two().trailing_zeros() as usize;
         for bucket in self.buckets.iter_mut().skip(class).take(3) {
             if let Some(list) = bucket.pop() {
                 return list;
             }
         }
-        Vec::with_capacity(need.max(1).next_power_of_two())
+        Vec::with_capacity(need.next_power_of_two())
     }
 
     fn give(&mut self, mut list: Vec<T>) {
@@ -528,8 +528,6 @@ impl Sah<'_> {
         let depth = node.depth + 1;
         let need = [plane.below, plane.above].map(|count| count > self.leaf_size && depth < self.max_depth);
         let mut tris: [Vec<u32>; 2] = [scratch.triangles(plane.below), scratch.triangles(plane.above)];
-        tris[0].reserve(plane.below);
-        tris[1].reserve(plane.above);
         let mut fresh = std::mem::take(&mut scratch.fresh);
         for (r, c) in code.iter_mut().enumerate() {
             let t = node.triangles[r];

@@ -8,7 +8,7 @@
 //! order (the sort is stable), which no caller relies on: the sweep counts runs of equal
 //! positions and the partition reads codes by reference.
 
-/// Lists shorter than this are better sorted otherwise (the builder packs them into integers,
+/// Lists shorter than this are better sorted otherwise (the builder sorts its events as integers,
 /// `sah::sort_events`): three passes over 2048-entry histograms cost more than sorting a few
 /// hundred events directly.
 pub const RADIX_MIN: usize = 512;
@@ -18,7 +18,7 @@ const PASSES: [(u32, u32); 3] = [(0, 11), (11, 11), (22, 12)];
 
 /// The f32's bits as an unsigned integer whose order is `f32::total_cmp`'s.
 #[inline]
-fn ordered_bits(x: f32) -> u32 {
+pub fn ordered_bits(x: f32) -> u32 {
     let b = x.to_bits();
     if b & 0x8000_0000 != 0 {
         !b
@@ -34,27 +34,30 @@ pub fn position_of(u: u32) -> f32 {
 }
 
 /// The sort key of a position and a 2-bit kind: by position, then kind.
-#[inline]
-pub fn key(pos: f32, kind: u32) -> u64 {
+#[cfg(test)]
+fn key(pos: f32, kind: u32) -> u64 {
     ((ordered_bits(pos) as u64) << 2) | (kind & 3) as u64
 }
 
-/// Sorts `items` by `key_of` (34-bit keys from `key`), stably; `tmp` is scratch space kept by
-/// the caller between calls. Correct for any length, worth it from `RADIX_MIN` on.
+/// Sorts `items` by `key_of` (34-bit keys, as from `key`), stably; `tmp` is scratch space kept
+/// by the caller between calls. Correct for any length, worth it from `RADIX_MIN` on. The key
+/// is recomputed in every pass rather than stored: the builder's events carry theirs in their
+/// top bits, so a shift is cheaper than a second array to scatter.
 pub fn sort_by_key34<T: Copy>(items: &mut Vec<T>, tmp: &mut Vec<T>, key_of: impl Fn(&T) -> u64) {
     let n = items.len();
+    // All three histograms in one pass over the items.
+    let mut counts = vec![0usize; 3 << 12];
+    for item in items.iter() {
+        let k = key_of(item);
+        for (p, (shift, bits)) in PASSES.into_iter().enumerate() {
+            counts[(p << 12) + ((k >> shift) & ((1u64 << bits) - 1)) as usize] += 1;
+        }
+    }
     tmp.clear();
     tmp.reserve(n);
-    let mut keys: Vec<u64> = items.iter().map(&key_of).collect();
-    let mut keys_tmp: Vec<u64> = Vec::with_capacity(n);
-    let mut counts = vec![0usize; 1 << 12];
-    for (shift, bits) in PASSES {
+    for (p, (shift, bits)) in PASSES.into_iter().enumerate() {
         let mask = (1u64 << bits) - 1;
-        let counts = &mut counts[..1 << bits];
-        counts.fill(0);
-        for &k in &keys {
-            counts[((k >> shift) & mask) as usize] += 1;
-        }
+        let counts = &mut counts[p << 12..(p << 12) + (1 << bits)];
         // A pass whose digit is the same for every key would move nothing.
         if counts.iter().any(|&c| c == n) {
             continue;
@@ -66,24 +69,20 @@ pub fn sort_by_key34<T: Copy>(items: &mut Vec<T>, tmp: &mut Vec<T>, key_of: impl
             sum += here;
         }
         tmp.clear();
-        keys_tmp.clear();
         {
-            let (out, out_keys) = (&mut tmp.spare_capacity_mut()[..n], &mut keys_tmp.spare_capacity_mut()[..n]);
-            for (item, &k) in items.iter().zip(&keys) {
-                let slot = &mut counts[((k >> shift) & mask) as usize];
+            let out = &mut tmp.spare_capacity_mut()[..n];
+            for item in items.iter() {
+                let slot = &mut counts[((key_of(item) >> shift) & mask) as usize];
                 out[*slot].write(*item);
-                out_keys[*slot].write(k);
                 *slot += 1;
             }
         }
         // SAFETY: the prefix sums give every item its own slot below n, so the scatter wrote
-        // all n slots of both lists, which were empty.
+        // all n slots of `tmp`, which was empty.
         unsafe {
             tmp.set_len(n);
-            keys_tmp.set_len(n);
         }
         std::mem::swap(items, tmp);
-        std::mem::swap(&mut keys, &mut keys_tmp);
     }
 }
 

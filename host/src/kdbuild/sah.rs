@@ -7,7 +7,11 @@
 //!   triangles that straddle the plane are made anew, from their clipped boxes (perfect splits,
 //!   §4.3), and sorted and merged in: O(N log N) in all.
 //! - One sweep per axis finds the plane of least cost over every candidate (§5.1); triangles lying
-//!   in the plane go to the side that makes the split cheaper (§4.2).
+//!   in the plane go to the side that makes the split cheaper (§4.2). Most candidates are
+//!   priced first by an estimate that multiplies where the cost divides; only those the
+//!   estimate cannot rule out get the exact cost, which alone decides (`Sah::estimate`).
+//! - An event is one integer (position bits, kind, reference; `Event`) whose order is the sweep
+//!   order, so sorting, merging and classifying events compare integers.
 //! - Cost C = λ·(K_T + K_I·(P_L·T(N_L) + P_R·T(N_R))), where T(N) = ⌈N / leaf_block⌉ counts the
 //!   leaf tests (8 triangles each by default, the SIMD leaf test; 1 gives the paper's N), with λ = `empty_factor` (0.8) when one side is
 //!   empty and the plane is not flat on the voxel's boundary, else 1 (the project's seed).
@@ -26,8 +30,8 @@
 use super::clip::{clipped_box, clipped_box_with, to_f64, Aabb, ClipBuffers};
 use super::{event_sort, BuildSettings, KdTree};
 use rayon::prelude::*;
+use std::mem::MaybeUninit;
 use shared::layout::{KdNode, Triangle};
-use std::cmp::Ordering;
 
 const END: u32 = 0;
 const PLANAR: u32 = 1;
@@ -36,48 +40,70 @@ const START: u32 = 2;
 /// Nodes with fewer references than this build their subtree on one thread.
 const PARALLEL_MIN: usize = 4096;
 
-/// One event: a position on an axis and the node-local reference it belongs to, packed with the
-/// event kind as `reference << 2 | kind`. Within a node the references are 0..N, so partition
-/// flags are a plain array even when sibling subtrees are built in parallel.
-#[derive(Clone, Copy, Debug)]
-struct Event {
-    pos: f32,
-    key: u32,
-}
+/// Bits of an event that hold its node-local reference (scenes have fewer than 2^30 triangles).
+const REFERENCE_BITS: u32 = 30;
+const REFERENCE_MASK: u64 = (1 << REFERENCE_BITS) - 1;
+
+/// One event, packed into one integer whose order is the sweep's: the position as
+/// `event_sort::ordered_bits` (bits 32–63, an unsigned integer in the float's order), the kind
+/// (bits 30–31: end < planar < start, Wald & Havran §5.1) and the node-local reference
+/// (bits 0–29). Comparing, sorting and merging events are then integer operations, the radix
+/// sort's key is a shift, and a position is decoded back to a float only where a plane's cost
+/// is computed. Within a node the references are 0..N, so partition flags are a plain array
+/// even when sibling subtrees are built in parallel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+#[repr(transparent)]
+struct Event(u64);
 
 impl Event {
     fn new(pos: f32, reference: usize, kind: u32) -> Self {
         // -0.0 + 0.0 = +0.0: both zeros sort and compare as one position.
-        Self { pos: pos + 0.0, key: ((reference as u32) << 2) | kind }
+        let bits = event_sort::ordered_bits(pos + 0.0) as u64;
+        Self((bits << 32) | ((kind as u64) << REFERENCE_BITS) | reference as u64)
     }
+    /// The position in `event_sort::ordered_bits` form: compares as the position does.
+    #[inline]
+    fn pos_bits(self) -> u32 {
+        (self.0 >> 32) as u32
+    }
+    #[cfg(test)]
+    fn pos(self) -> f32 {
+        event_sort::position_of(self.pos_bits())
+    }
+    #[inline]
     fn reference(self) -> usize {
-        (self.key >> 2) as usize
+        (self.0 & REFERENCE_MASK) as usize
     }
+    #[inline]
     fn kind(self) -> u32 {
-        self.key & 3
+        (self.0 >> REFERENCE_BITS) as u32 & 3
+    }
+    /// Position and kind: the sweep order.
+    #[inline]
+    fn key(self) -> u64 {
+        self.0 >> REFERENCE_BITS
+    }
+    /// The event with its reference cleared: no greater than any event of its key, above every
+    /// event of a smaller key.
+    #[inline]
+    fn key_floor(self) -> u64 {
+        self.0 & !REFERENCE_MASK
+    }
+    #[inline]
+    fn with_reference(self, reference: u32) -> Self {
+        Self(self.key_floor() | reference as u64)
     }
 }
 
-/// Sweep order: by position, then end < planar < start (Wald & Havran §5.1).
-fn order(a: &Event, b: &Event) -> Ordering {
-    a.pos.total_cmp(&b.pos).then((a.key & 3).cmp(&(b.key & 3)))
-}
-
-/// Sorts events in sweep order (`order`): a radix sort for long lists (`event_sort`).
-/// Short lists (the fresh events of most splits) are packed into one u64 each, position and kind
-/// above the reference, and sorted as integers: a third of the comparison sort's instructions.
-/// Events equal in position and kind come out by reference, an order the build does not depend
-/// on (see `event_sort`).
-fn sort_events(list: &mut Vec<Event>, tmp: &mut Vec<Event>, packed: &mut Vec<u64>) {
+/// Sorts events in sweep order: a radix sort on the key for long lists (`event_sort`), an
+/// integer sort for short ones (the fresh events of most splits). Lists are made in reference
+/// order, and the radix sort is stable, so both give events equal in position and kind by
+/// reference, an order the build does not depend on anyway (see `event_sort`).
+fn sort_events(list: &mut Vec<Event>, tmp: &mut Vec<Event>) {
     if list.len() >= event_sort::RADIX_MIN {
-        event_sort::sort_by_key34(list, tmp, |e| event_sort::key(e.pos, e.kind()));
-        return;
-    }
-    packed.clear();
-    packed.extend(list.iter().map(|e| (event_sort::key(e.pos, e.kind()) << 30) | e.reference() as u64));
-    packed.sort_unstable();
-    for (e, &p) in list.iter_mut().zip(packed.iter()) {
-        *e = Event { pos: event_sort::position_of((p >> 32) as u32), key: (((p & 0x3fff_ffff) as u32) << 2) | ((p >> 30) & 3) as u32 };
+        event_sort::sort_by_key34(list, tmp, |e| e.key());
+    } else {
+        list.sort_unstable();
     }
 }
 
@@ -92,14 +118,14 @@ fn push_events(events: &mut [Vec<Event>; 3], reference: usize, b: &Aabb) {
     }
 }
 
-/// Merges `b` into `a`, both sorted by `order`, in place from the back (no second buffer).
+/// Merges `b` into `a`, both in sweep order, in place from the back (no second buffer).
 fn merge_into(a: &mut Vec<Event>, b: &[Event]) {
     let (mut i, mut j) = (a.len(), b.len());
-    a.resize(i + j, Event { pos: 0.0, key: 0 });
+    a.resize(i + j, Event(0));
     let mut k = a.len();
     while j > 0 {
         k -= 1;
-        if i > 0 && order(&a[i - 1], &b[j - 1]) == Ordering::Greater {
+        if i > 0 && a[i - 1].key() > b[j - 1].key() {
             a[k] = a[i - 1];
             i -= 1;
         } else {
@@ -168,9 +194,8 @@ struct Scratch {
     triangle_lists: Pool<u32>,
     code: Vec<u32>,
     fresh: [[Vec<Event>; 3]; 2],
-    /// The radix sort's second buffer, and the short sort's packed events.
+    /// The radix sort's second buffer.
     sort: Vec<Event>,
-    packed: Vec<u64>,
     clip: ClipBuffers,
 }
 
@@ -217,6 +242,44 @@ struct Sweep {
     area: f64,
     lo: f32,
     hi: f32,
+    /// 2·K_I / area: turns halved areas into the intersection part of the cost (in the sweep's
+    /// estimate, `Sah::estimate`; the cost itself divides, as it always has).
+    scale: f64,
+    axis: usize,
+}
+
+/// The cheapest plane a sweep has found so far.
+struct Best {
+    plane: Option<Plane>,
+    cost: f64,
+}
+
+impl Best {
+    /// Above this, an estimated cost (`Sah::estimate`) cannot be the plane's exact cost if that
+    /// beats the best: the estimate's relative error is under 2^-49.
+    #[inline]
+    fn threshold(&self) -> f64 {
+        if self.plane.is_none() {
+            f64::INFINITY
+        } else {
+            self.cost * (1.0 + 1e-12)
+        }
+    }
+}
+
+impl Sweep {
+    /// Half the surface areas of the parts of the voxel below and above `pos`.
+    #[inline]
+    fn faces(&self, pos: f32) -> (f64, f64) {
+        (self.face + (pos as f64 - self.lo as f64) * self.rim, self.face + (self.hi as f64 - pos as f64) * self.rim)
+    }
+
+    /// The probabilities that a ray through the voxel crosses the parts whose halved areas are
+    /// `faces` (`Sweep::faces`).
+    #[inline]
+    fn probabilities(&self, (below_faces, above_faces): (f64, f64)) -> (f64, f64) {
+        (2.0 * below_faces / self.area, 2.0 * above_faces / self.area)
+    }
 }
 
 /// A subtree laid out on its own: child and index offsets are relative to its own arrays.
@@ -321,7 +384,7 @@ pub fn build(triangles: &[Triangle], bounds: Aabb, settings: &BuildSettings, max
             root.triangles.push(id as u32);
         }
     }
-    root.events.par_iter_mut().for_each(|list| sort_events(list, &mut Vec::new(), &mut Vec::new()));
+    root.events.par_iter_mut().for_each(|list| sort_events(list, &mut Vec::new()));
     let part = sah.build_parallel(root);
     let (nodes, indices) = part.size();
     let mut out = Subtree { nodes: Vec::with_capacity(nodes), indices: Vec::with_capacity(indices), depth: 0 };
@@ -421,33 +484,70 @@ impl Sah<'_> {
             return None;
         }
         let n = node.triangles.len();
-        let mut best: Option<Plane> = None;
+        let mut best = Best { plane: None, cost: f64::INFINITY };
         for (k, events) in node.events.iter().enumerate() {
             let (lo, hi) = (voxel.lo[k], voxel.hi[k]);
             let (e1, e2) = (voxel.extent((k + 1) % 3), voxel.extent((k + 2) % 3));
-            let sweep = Sweep { face: e1 * e2, rim: e1 + e2, area, lo, hi };
-            let (mut below, mut above) = (0usize, n);
-            let mut i = 0;
-            while i < events.len() {
-                // Sorted by position and then kind, so one run holds every event at `pos`.
-                let pos = events[i].pos;
-                let mut count = [0usize; 4];
-                while i < events.len() && events[i].pos == pos {
-                    count[events[i].kind() as usize] += 1;
-                    i += 1;
-                }
-                let planar = count[PLANAR as usize];
-                above -= count[END as usize] + planar;
-                if let Some((cost, planar_below)) = self.evaluate(&sweep, pos, below, planar, above) {
-                    if best.is_none_or(|b| cost < b.cost) {
-                        let (nb, na) = if planar_below { (below + planar, above) } else { (below, above + planar) };
-                        best = Some(Plane { axis: k, pos, planar_below, cost, below: nb, above: na });
-                    }
-                }
-                below += count[START as usize] + planar;
+            let sweep = Sweep { face: e1 * e2, rim: e1 + e2, area, lo, hi, scale: 2.0 * self.intersection_cost / area, axis: k };
+            self.sweep(events, n, &sweep, &mut best);
+        }
+        best.plane
+    }
+
+    /// One axis's sweep (Wald & Havran §5.1), run by run of events at one position.
+    fn sweep(&self, events: &[Event], n: usize, sweep: &Sweep, best: &mut Best) {
+        let (mut below, mut above) = (0usize, n);
+        let mut i = 0;
+        while i < events.len() {
+            // Sorted by position and then kind, so one run holds every event at `pos`.
+            let bits = events[i].pos_bits();
+            let first = i;
+            let (mut ends, mut planar) = (0usize, 0usize);
+            while let Some(e) = events.get(i).filter(|e| e.pos_bits() == bits) {
+                ends += (e.kind() == END) as usize;
+                planar += (e.kind() == PLANAR) as usize;
+                i += 1;
+            }
+            let starts = i - first - ends - planar;
+            above -= ends + planar;
+            if planar > 0 || below == 0 || above == 0 || best.plane.is_none() || self.estimate(sweep, bits, below, above) <= best.threshold() {
+                self.consider(sweep, bits, below, planar, above, best);
+            }
+            below += starts + planar;
+        }
+    }
+
+    /// The cost of a plane with nothing in it and neither side empty, estimated with a
+    /// multiply where the cost divides: within a few roundings of positive terms (relative
+    /// error under 2^-49) of `consider`'s exact cost. The exact cost takes two divisions, whose
+    /// latency was a quarter of the sweep; a plane whose estimate lies clearly above the best so
+    /// far (`Best::threshold`) cannot beat it, so only the rest pay for the exact cost, which
+    /// alone decides.
+    #[inline]
+    fn estimate(&self, s: &Sweep, bits: u32, below: usize, above: usize) -> f64 {
+        let (below_faces, above_faces) = s.faces(event_sort::position_of(bits));
+        self.traversal_cost + s.scale * (below_faces * self.leaf_tests(below) + above_faces * self.leaf_tests(above))
+    }
+
+    /// Takes the plane at `bits` if it is cheaper than the best so far (the first of equals
+    /// wins): the exact cost, whatever an estimate said.
+    #[inline]
+    fn consider(&self, s: &Sweep, bits: u32, below: usize, planar: usize, above: usize, best: &mut Best) {
+        let pos = event_sort::position_of(bits);
+        let found = if planar == 0 && below > 0 && above > 0 {
+            // λ = 1, and the plane lies inside the voxel: `evaluate` without its cases (and
+            // the same cost, bit for bit).
+            let (p_below, p_above) = s.probabilities(s.faces(pos));
+            Some((self.traversal_cost + self.intersection_cost * (p_below * self.leaf_tests(below) + p_above * self.leaf_tests(above)), true))
+        } else {
+            self.evaluate(s, pos, below, planar, above)
+        };
+        if let Some((cost, planar_below)) = found {
+            if best.plane.is_none() || cost < best.cost {
+                let (nb, na) = if planar_below { (below + planar, above) } else { (below, above + planar) };
+                *best = Best { plane: Some(Plane { axis: s.axis, pos, planar_below, cost, below: nb, above: na }), cost };
             }
         }
-        best
     }
 
     /// The cost of splitting at `pos` with the planar triangles on the cheaper side, and whether
@@ -455,8 +555,7 @@ impl Sah<'_> {
     /// sibling is the voxel).
     #[inline]
     fn evaluate(&self, s: &Sweep, pos: f32, below: usize, planar: usize, above: usize) -> Option<(f64, bool)> {
-        let p_below = 2.0 * (s.face + (pos as f64 - s.lo as f64) * s.rim) / s.area;
-        let p_above = 2.0 * (s.face + (s.hi as f64 - pos as f64) * s.rim) / s.area;
+        let (p_below, p_above) = s.probabilities(s.faces(pos));
         let flat_on_boundary = pos == s.lo || pos == s.hi;
         let cost = |nb: usize, na: usize| -> Option<f64> {
             if (nb == 0 && pos == s.lo) || (na == 0 && pos == s.hi) {
@@ -500,12 +599,16 @@ impl Sah<'_> {
 
     /// Partitions the node's references and events for `plane` (Wald & Havran §5.3).
     fn split(&self, node: Node, plane: Plane, bad_refines: u32, scratch: &mut Scratch) -> (Node, Node) {
-        // One word per reference: first its side (`STRADDLES`, `BELOW` or `ABOVE_BIT`), then its
-        // index in the child (with `ABOVE_BIT` set for the above child).
-        const STRADDLES: u32 = u32::MAX;
-        const BELOW: u32 = 0;
-        const ABOVE_BIT: u32 = 1 << 31;
+        // One word per reference: the side that keeps its events (`KEEP_BELOW`, `KEEP_ABOVE`, or
+        // neither for a straddler, whose events are made anew), then also its index in that
+        // child, in the low bits, where a moved event wants it. The partition adds the keep bits
+        // to the children's counts as they are, with no comparisons.
+        const STRADDLES: u32 = 0;
+        const KEEP_BELOW: u32 = 1 << 30;
+        const KEEP_ABOVE: u32 = 1 << 31;
+        const INDEX: u32 = (1 << 30) - 1;
         let (k, pos) = (plane.axis, plane.pos);
+        let pos_bits = event_sort::ordered_bits(pos);
         if plane.below == 0 || plane.above == 0 {
             return Self::cut_off_empty(node, plane, bad_refines);
         }
@@ -516,9 +619,9 @@ impl Sah<'_> {
         for e in &node.events[k] {
             let r = e.reference();
             match e.kind() {
-                END if e.pos <= pos => code[r] = BELOW,
-                START if e.pos >= pos => code[r] = ABOVE_BIT,
-                PLANAR => code[r] = if e.pos < pos || (e.pos == pos && plane.planar_below) { BELOW } else { ABOVE_BIT },
+                END if e.pos_bits() <= pos_bits => code[r] = KEEP_BELOW,
+                START if e.pos_bits() >= pos_bits => code[r] = KEEP_ABOVE,
+                PLANAR => code[r] = if e.pos_bits() < pos_bits || (e.pos_bits() == pos_bits && plane.planar_below) { KEEP_BELOW } else { KEEP_ABOVE },
                 _ => {}
             }
         }
@@ -543,6 +646,7 @@ impl Sah<'_> {
                 }
             } else {
                 let s = (*c >> 31) as usize;
+                debug_assert!(tris[s].len() as u32 <= INDEX);
                 *c |= tris[s].len() as u32;
                 tris[s].push(t);
             }
@@ -550,10 +654,10 @@ impl Sah<'_> {
         let mut events: [[Vec<Event>; 3]; 2] = Default::default();
         let Node { triangles: old_triangles, events: [old_x, old_y, old_z], voxel: _, depth: _, bad_refines: _, budget } = node;
         for (axis, old) in [old_x, old_y, old_z].into_iter().enumerate() {
-            let moved = |e: &Event, c: u32| Event { pos: e.pos, key: ((c & !ABOVE_BIT) << 2) | e.kind() };
+            let moved = |e: &Event, c: u32| e.with_reference(c & INDEX);
             for side in &mut fresh {
                 if !side[axis].is_empty() {
-                    sort_events(&mut side[axis], &mut scratch.sort, &mut scratch.packed);
+                    sort_events(&mut side[axis], &mut scratch.sort);
                 }
             }
             let (fresh_below, fresh_above) = (&fresh[0][axis], &fresh[1][axis]);
@@ -575,38 +679,49 @@ impl Sah<'_> {
                     below.reserve(cap_b);
                     above.reserve(cap_a);
                     let (mut nb, mut na, mut ib, mut ia) = (0, 0, 0, 0);
-                    let head_key = |list: &[Event], i: usize| list.get(i).map_or(u64::MAX, |e| event_sort::key(e.pos, e.kind()));
+                    // A fresh event goes first while it is below the old event's key floor, that
+                    // is while its key is smaller (events of one key differ in references only).
+                    let head_key = |list: &[Event], i: usize| list.get(i).map_or(u64::MAX, |e| e.0);
                     let (mut kb, mut ka) = (head_key(fresh_below, 0), head_key(fresh_above, 0));
                     {
-                        let (bs, as_) = (&mut below.spare_capacity_mut()[..cap_b], &mut above.spare_capacity_mut()[..cap_a]);
+                        let (bs, as_) = (below.spare_capacity_mut()[..cap_b].as_mut_ptr(), above.spare_capacity_mut()[..cap_a].as_mut_ptr());
                         for e in &old {
-                            let k = event_sort::key(e.pos, e.kind());
+                            let k = e.key_floor();
                             while kb < k {
-                                bs[nb].write(fresh_below[ib]);
+                                debug_assert!(nb < cap_b);
+                                // SAFETY: in the spare capacity, as below.
+                                unsafe { bs.add(nb).write(MaybeUninit::new(fresh_below[ib])) };
                                 (nb, ib) = (nb + 1, ib + 1);
                                 kb = head_key(fresh_below, ib);
                             }
                             while ka < k {
-                                as_[na].write(fresh_above[ia]);
+                                debug_assert!(na < cap_a);
+                                // SAFETY: in the spare capacity, as below.
+                                unsafe { as_.add(na).write(MaybeUninit::new(fresh_above[ia])) };
                                 (na, ia) = (na + 1, ia + 1);
                                 ka = head_key(fresh_above, ia);
                             }
                             let c = code[e.reference()];
                             let m = moved(e, c);
-                            // nb and na count the events written so far: below the capacities.
-                            bs[nb].write(m);
-                            as_[na].write(m);
-                            nb += (c < ABOVE_BIT) as usize;
-                            na += (c >= ABOVE_BIT && c != STRADDLES) as usize;
+                            // nb and na count the events kept so far, which the capacities
+                            // exceed (`cap_b`, `cap_a`).
+                            debug_assert!(nb < cap_b && na < cap_a);
+                            // SAFETY: the slots lie in the lists' spare capacities (above).
+                            unsafe {
+                                bs.add(nb).write(MaybeUninit::new(m));
+                                as_.add(na).write(MaybeUninit::new(m));
+                            }
+                            nb += ((c >> 30) & 1) as usize;
+                            na += (c >> 31) as usize;
                         }
-                        for &f in &fresh_below[ib..] {
-                            bs[nb].write(f);
-                            nb += 1;
+                        // SAFETY: the rest of each fresh list fits in the capacity it was counted in.
+                        unsafe {
+                            debug_assert!(nb + fresh_below.len() - ib <= cap_b && na + fresh_above.len() - ia <= cap_a);
+                            std::ptr::copy_nonoverlapping(fresh_below[ib..].as_ptr(), bs.add(nb).cast::<Event>(), fresh_below.len() - ib);
+                            std::ptr::copy_nonoverlapping(fresh_above[ia..].as_ptr(), as_.add(na).cast::<Event>(), fresh_above.len() - ia);
                         }
-                        for &f in &fresh_above[ia..] {
-                            as_[na].write(f);
-                            na += 1;
-                        }
+                        nb += fresh_below.len() - ib;
+                        na += fresh_above.len() - ia;
                     }
                     // SAFETY: the loops wrote slots 0..nb of `below` and 0..na of `above` (each
                     // kept event's slot is written before its count moves past it), and both
@@ -617,11 +732,11 @@ impl Sah<'_> {
                     }
                 }
                 [true, false] => {
-                    below.extend(old.iter().filter_map(|e| Some(code[e.reference()]).filter(|&c| c < ABOVE_BIT).map(|c| moved(e, c))));
+                    below.extend(old.iter().filter_map(|e| Some(code[e.reference()]).filter(|&c| c & KEEP_BELOW != 0).map(|c| moved(e, c))));
                     merge_into(&mut below, fresh_below);
                 }
                 [false, true] => {
-                    above.extend(old.iter().filter_map(|e| Some(code[e.reference()]).filter(|&c| c >= ABOVE_BIT && c != STRADDLES).map(|c| moved(e, c))));
+                    above.extend(old.iter().filter_map(|e| Some(code[e.reference()]).filter(|&c| c & KEEP_ABOVE != 0).map(|c| moved(e, c))));
                     merge_into(&mut above, fresh_above);
                 }
                 [false, false] => {}
@@ -691,14 +806,15 @@ mod tests {
             state ^= state << 5;
             state
         };
-        let (mut tmp, mut packed) = (Vec::new(), Vec::new());
+        let mut tmp = Vec::new();
         for n in [0usize, 3, 100, event_sort::RADIX_MIN + 7, 5000] {
             let mut list: Vec<Event> = (0..n).map(|r| Event::new([-2.0f32, -0.0, 0.0, 0.5, 3.0][next() as usize % 5] * (1 + next() % 3) as f32, r, next() % 3)).collect();
             let mut want = list.clone();
-            want.sort_by(order);
-            sort_events(&mut list, &mut tmp, &mut packed);
-            assert!(list.windows(2).all(|w| order(&w[0], &w[1]).is_le()), "n {n}: not sorted");
-            let key = |e: &Event| (e.pos.to_bits(), e.key);
+            want.sort_by(|a, b| a.pos().total_cmp(&b.pos()).then(a.kind().cmp(&b.kind())));
+            sort_events(&mut list, &mut tmp);
+            assert!(list.windows(2).all(|w| w[0].key() <= w[1].key()), "n {n}: not sorted");
+            assert!(list.iter().zip(&want).all(|(a, b)| a.pos().to_bits() == b.pos().to_bits() && a.kind() == b.kind()), "n {n}: not in the sweep order");
+            let key = |e: &Event| e.0;
             let (mut a, mut b): (Vec<_>, Vec<_>) = (list.iter().map(key).collect(), want.iter().map(key).collect());
             a.sort();
             b.sort();

@@ -118,7 +118,7 @@ impl Event {
 /// vertex shared by a few triangles, one to eight events of no predictable count, and a loop that
 /// stopped at each run's end mispredicted that stop at nearly every run.
 #[inline]
-fn run_masks(raw: &[u64], first: usize) -> (u32, u32, u32) {
+fn run_masks(raw: &[u64], first: usize) -> Group {
     const LANES: usize = 8;
     type Lanes = Simd<u64, LANES>;
     const KIND: u64 = 3 << REFERENCE_BITS;
@@ -128,19 +128,30 @@ fn run_masks(raw: &[u64], first: usize) -> (u32, u32, u32) {
     };
     if let (Some(cur), Some(next)) = (raw.get(first..first + LANES), raw.get(first + 1..first + 1 + LANES)) {
         let (v, w) = (Lanes::from_slice(cur), Lanes::from_slice(next));
-        let ends_run = (v >> 32).simd_ne(w >> 32).to_bitmask() as u32;
+        let runs = (v >> 32).simd_ne(w >> 32).to_bitmask() as u32;
         let (ends, planar) = kinds(v);
-        return (ends_run, ends, planar);
+        return Group { runs, ends, planar, bits: (v >> 32).cast::<u32>().to_array() };
     }
     // The list's last few events.
-    let (mut ends_run, mut ends, mut planar) = (0u32, 0u32, 0u32);
+    let mut g = Group { runs: 0, ends: 0, planar: 0, bits: [0; LANES] };
     for (l, &e) in raw[first..].iter().take(LANES).enumerate() {
         let last = raw.get(first + l + 1).is_none_or(|&x| x >> 32 != e >> 32);
-        ends_run |= (last as u32) << l;
-        ends |= ((Event(e).kind() == END) as u32) << l;
-        planar |= ((Event(e).kind() == PLANAR) as u32) << l;
+        g.runs |= (last as u32) << l;
+        g.ends |= ((Event(e).kind() == END) as u32) << l;
+        g.planar |= ((Event(e).kind() == PLANAR) as u32) << l;
+        g.bits[l] = Event(e).pos_bits();
     }
-    (ends_run, ends, planar)
+    g
+}
+
+/// Eight events of a sweep (`run_masks`): bit l of each mask is about the l-th.
+struct Group {
+    /// Events that end their run (the last of their position).
+    runs: u32,
+    ends: u32,
+    planar: u32,
+    /// Positions (`Event::pos_bits`).
+    bits: [u32; 8],
 }
 
 /// Sorts events in sweep order: a radix sort on the key for long lists (`event_sort`), an
@@ -550,9 +561,10 @@ impl Sah<'_> {
         // Ends and planars before the current group of eight, and planars up to the last run.
         let (mut ends_before, mut planar_before, mut planar_done) = (0usize, 0usize, 0usize);
         let mut below = 0usize;
+        let mut threshold = best.threshold();
         let mut first = 0;
         while first < raw.len() {
-            let (mut runs, ends, planars) = run_masks(raw, first);
+            let Group { mut runs, ends, planar: planars, bits } = run_masks(raw, first);
             while runs != 0 {
                 // Sorted by position and then kind, so a run holds every event at its position.
                 let l = runs.trailing_zeros() as usize;
@@ -562,9 +574,12 @@ impl Sah<'_> {
                 let planar_here = planar_before + (planars & upto).count_ones() as usize;
                 let planar = planar_here - planar_done;
                 let above = n - ends_here - planar_here;
-                let bits = (raw[first + l] >> 32) as u32;
-                if planar > 0 || below == 0 || above == 0 || best.plane.is_none() || self.estimate(sweep, bits, below, above) <= best.threshold() {
+                let bits = bits[l];
+                // Planes with planar references or an empty side take `evaluate`'s cases.
+                let special = (planar != 0) | (below == 0) | (above == 0);
+                if special || self.estimate(sweep, bits, below, above) <= threshold {
                     self.consider(sweep, bits, below, planar, above, best);
+                    threshold = best.threshold();
                 }
                 // Every event so far is an end, a planar or a start; the latter two are below
                 // the next position.

@@ -11,7 +11,7 @@ and the time to relMSE 1e-3, interpolated log-log between the two ladder points 
 extrapolated along the fit when the ladder does not reach it (marked).
 
 Time is what each renderer spends after its scene file is parsed, including building its
-acceleration structure: kdtrace `build_s + render_s`, Mitsuba `load_dict + render`, Cycles the
+acceleration structure: kdtrace `build_s + prepare_s + render_s`, Mitsuba `load_dict + render`, Cycles the
 render operator (scene sync, BVH, render, EXR write). Process start-up is left out of all.
 
 Run through bench/peers.sh (it sets up the venv and DRJIT_LIBLLVM_PATH).
@@ -92,7 +92,7 @@ def render(renderer, scene, spp, seed, out, a):
         dev = renderer.split("-")[1]
         sampler = ["--sampler", "independent"] if renderer.endswith("-independent") else []
         j, wall = run([KDTRACE, "render", obj, "--out", out, "--device", dev, "--json"] + sampler + common)
-        return j["build_s"] + j["render_s"], wall, j
+        return j["build_s"] + j.get("prepare_s", 0.0) + j["render_s"], wall, j
     base, _, variant = renderer.partition("-")
     script = os.path.join(ROOT, "bench", "peers", f"render_{base}.py")
     extra = ["--sampler", variant] if variant else []

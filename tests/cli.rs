@@ -28,7 +28,7 @@ fn renders_the_default_scene_on_both_devices_with_json() {
         let o = kdtrace(&["render", &repo("scenes/cornell-box.obj"), "--out", out.to_str().unwrap(), "--device", device, "--spp", "4", "--width", "40", "--height", "30", "--json"]);
         assert!(o.status.success(), "{device}: {}", stderr(&o));
         let line: serde_json::Value = serde_json::from_slice(&o.stdout).expect("one JSON line");
-        for key in ["device", "adapter", "triangles", "spp", "width", "height", "load_s", "build_s", "render_s", "samples_per_s"] {
+        for key in ["device", "adapter", "triangles", "spp", "width", "height", "load_s", "build_s", "prepare_s", "render_s", "samples_per_s"] {
             assert!(line.get(key).is_some(), "{device}: JSON lacks {key}: {line}");
         }
         assert_eq!(line["device"], device);

@@ -347,7 +347,7 @@ fn render(r: RenderArgs) -> Result<ExitCode> {
             "nodes": c.tree.nodes.len(), "tree_depth": c.tree.depth,
             "spp": img.spp, "spp_max": s.spp, "time_limit_s": s.time_limit_s, "variance": r.variance,
             "width": s.width, "height": s.height, "bounces": s.max_bounces, "seed": s.seed, "sampler": s.sampler,
-            "load_s": loaded.load_s, "build_s": loaded.build_s, "render_s": render_s,
+            "load_s": loaded.load_s, "build_s": loaded.build_s, "prepare_s": loaded.prepare_s, "render_s": render_s,
             "samples_per_s": samples / render_s, "zeroed_samples": img.zeroed_samples(),
             "traversal": img.traversal, "dispatch": s.dispatch, "aov": s.aov,
         });
@@ -362,8 +362,8 @@ fn render(r: RenderArgs) -> Result<ExitCode> {
         println!("{line}");
     } else {
         eprintln!(
-            "{}: {} triangles, {}x{} at {} spp on {adapter}: load {:.3} s, build {:.3} s, render {:.3} s ({:.2} Msamples/s)",
-            r.out.display(), c.scene.triangles.len(), s.width, s.height, img.spp, loaded.load_s, loaded.build_s, render_s, samples / render_s / 1e6
+            "{}: {} triangles, {}x{} at {} spp on {adapter}: load {:.3} s, build {:.3} s, prepare {:.3} s, render {:.3} s ({:.2} Msamples/s)",
+            r.out.display(), c.scene.triangles.len(), s.width, s.height, img.spp, loaded.load_s, loaded.build_s, loaded.prepare_s, render_s, samples / render_s / 1e6
         );
     }
     Ok(ExitCode::SUCCESS)
@@ -414,7 +414,7 @@ fn tree(t: TreeArgs) -> Result<ExitCode> {
         let mut line = serde_json::to_value(&st)?;
         let extra = json!({
             "scene": t.scene, "builder": settings.builder, "settings": settings, "threads": rayon::current_num_threads(),
-            "load_s": loaded.load_s, "build_s": loaded.build_s,
+            "load_s": loaded.load_s, "build_s": loaded.build_s, "prepare_s": loaded.prepare_s,
             "mtris_per_s": c.scene.triangles.len() as f64 / loaded.build_s / 1e6,
             "valid": valid.as_ref().map(|v| v.is_ok()), "invalid_reason": valid.as_ref().and_then(|v| v.as_ref().err()),
         });
@@ -530,7 +530,7 @@ fn compile(a: CompileArgs) -> Result<ExitCode> {
     let c = &loaded.compiled;
     let bytes = std::fs::metadata(&a.out).map(|m| m.len()).unwrap_or(0);
     if a.json {
-        println!("{}", json!({ "scene": a.scene, "out": a.out, "triangles": c.scene.triangles.len(), "nodes": c.tree.nodes.len(), "bytes": bytes, "load_s": loaded.load_s, "build_s": loaded.build_s, "write_s": write_s }));
+        println!("{}", json!({ "scene": a.scene, "out": a.out, "triangles": c.scene.triangles.len(), "nodes": c.tree.nodes.len(), "bytes": bytes, "load_s": loaded.load_s, "build_s": loaded.build_s, "prepare_s": loaded.prepare_s, "write_s": write_s }));
     } else {
         eprintln!("{}: {} triangles, {} nodes, {bytes} bytes (load {:.3} s, build {:.3} s, write {write_s:.3} s)", a.out.display(), c.scene.triangles.len(), c.tree.nodes.len(), loaded.load_s, loaded.build_s);
     }

@@ -229,9 +229,9 @@ impl Compiled {
     }
 }
 
-/// Block `k` holds the triangles of `indices[4k .. 4k + 4]`, one per lane (`align_leaves` makes
-/// the list a whole number of blocks; lanes past a shorter list stay zero, a degenerate triangle
-/// no ray hits). Only the CPU reads them; the GPU binds a placeholder.
+/// Block `k` holds the triangles of `indices[8k .. 8k + 8]` (`BLOCK_WIDTH` = 8), one per lane
+/// (`align_leaves` makes the list a whole number of blocks; lanes past a shorter list stay zero,
+/// a degenerate triangle no ray hits). Only the CPU reads them; the GPU binds a placeholder.
 pub fn leaf_blocks(indices: &[u32], triangles: &[Triangle]) -> Vec<TriBlock> {
     let width = BLOCK_WIDTH as usize;
     indices

@@ -458,16 +458,10 @@ pub fn build(triangles: &[Triangle], bounds: Aabb, settings: &BuildSettings, max
 }
 
 impl Sah<'_> {
-    /// Leaf tests for `n` triangles (`BuildSettings::leaf_tests`).
+    /// Leaf tests for `n` triangles (`super::leaf_tests`).
     #[inline]
     fn leaf_tests(&self, n: usize) -> f64 {
-        // A division by a width known only at run time is tens of cycles, and the sweep asks
-        // up to four times per candidate plane; the widths in use are powers of two.
-        if self.leaf_block.is_power_of_two() {
-            ((n + self.leaf_block - 1) >> self.leaf_block.trailing_zeros()) as f64
-        } else {
-            n.div_ceil(self.leaf_block) as f64
-        }
+        super::leaf_tests(n, self.leaf_block) as f64
     }
 
     fn build_parallel(&self, node: Node) -> Part {

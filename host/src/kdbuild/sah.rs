@@ -569,9 +569,14 @@ impl Sah<'_> {
                 let planar = planar_here - planar_done;
                 let above = n - ends_here - planar_here;
                 let bits = bits[l];
-                // Planes with planar references or an empty side take `evaluate`'s cases.
+                // Planes with planar references or an empty side take `evaluate`'s cases: λ may
+                // scale their cost, and the planar references add to one side, so the estimate
+                // with the references wholly on each side, times the smaller λ, bounds them from
+                // below.
                 let special = (planar != 0) | (below == 0) | (above == 0);
-                if special || self.estimate(sweep, bits, below, above) <= threshold {
+                let estimate = self.estimate(sweep, bits, below, above);
+                let bound = if special { estimate * self.empty_factor.min(1.0) } else { estimate };
+                if bound <= threshold {
                     self.consider(sweep, bits, below, planar, above, best);
                     threshold = best.threshold();
                 }
@@ -591,7 +596,8 @@ impl Sah<'_> {
     /// error under 2^-49) of `consider`'s exact cost. The exact cost takes two divisions, whose
     /// latency was a quarter of the sweep; a plane whose estimate lies clearly above the best so
     /// far (`Best::threshold`) cannot beat it, so only the rest pay for the exact cost, which
-    /// alone decides.
+    /// alone decides. For any other plane, the estimate with `below` and `above` the references
+    /// wholly on each side bounds every placement's cost from below once scaled by λ.
     #[inline]
     fn estimate(&self, s: &Sweep, bits: u32, below: usize, above: usize) -> f64 {
         let (below_faces, above_faces) = s.faces(event_sort::position_of(bits));

@@ -2,10 +2,10 @@
 //! Tracing, and on doing that in O(N log N)", IEEE Symposium on Interactive Ray Tracing 2006.
 //!
 //! - Events (start, end, or planar for a box flat on that axis) are sorted once per axis (a radix
-//!   sort on position and kind, `event_sort`); every
-//!   split partitions the sorted lists in O(N) without re-sorting (§5.3). Only the events of
-//!   triangles that straddle the plane are made anew, from their clipped boxes (perfect splits,
-//!   §4.3), and sorted and merged in: O(N log N) in all.
+//!   sort on position and kind, `event_sort`); every split partitions the sorted lists in O(N)
+//!   without re-sorting (§5.3). Only the events of triangles that straddle the plane are made
+//!   anew, from their clipped boxes (perfect splits, §4.3), and sorted and merged in: O(N log N)
+//!   in all.
 //! - One sweep per axis finds the plane of least cost over every candidate (§5.1); triangles lying
 //!   in the plane go to the side that makes the split cheaper (§4.2). Most candidates are
 //!   priced first by an estimate that multiplies where the cost divides; only those the
@@ -13,8 +13,9 @@
 //! - An event is one integer (position bits, kind, reference; `Event`) whose order is the sweep
 //!   order, so sorting, merging and classifying events compare integers.
 //! - Cost C = λ·(K_T + K_I·(P_L·T(N_L) + P_R·T(N_R))), where T(N) = ⌈N / leaf_block⌉ counts the
-//!   leaf tests (8 triangles each by default, the SIMD leaf test; 1 gives the paper's N), with λ = `empty_factor` (0.8) when one side is
-//!   empty and the plane is not flat on the voxel's boundary, else 1 (the project's seed).
+//!   leaf tests (8 triangles each by default, the SIMD leaf test; 1 gives the paper's N), with
+//!   λ = `empty_factor` (0.8) when one side is empty and the plane is not flat on the voxel's
+//!   boundary, else 1 (the project's seed).
 //! - A node becomes a leaf when no split is cheaper than K_I·T(N), with pbrt-v3's allowance for a
 //!   few splits that cost more ("bad refines", §4.4.2), at the depth limit, or when the split
 //!   would exceed the node's share of the reference budget (`max_refs_factor`·N for the whole
@@ -23,10 +24,12 @@
 //! - The two children of a large node are built in parallel (rayon); each subtree is laid out
 //!   on its own and written into the final arrays once at the end, so the tree does not depend
 //!   on the number of threads.
-//! - Most of the work is the deep tail of small nodes (on the meshes, nine nodes in ten hold
-//!   fewer than eight references, and half the splits cut off empty space), so the bookkeeping
-//!   is kept off that path: lists come from per-thread pools, a split with one empty side hands
-//!   its lists to the other child unchanged, and a child that will be a leaf gets no events.
+//! - The work is passes over events: on the bunny's tree (eight-triangle leaves, about 37
+//!   references a leaf) the sweeps read 8.8 M events and the partitions 5.5 M, about a fifth of
+//!   the sweeps ending in a split that cuts off empty space. So the per-event work is kept
+//!   branch-free and the bookkeeping off that path: lists come from per-thread pools, a split
+//!   with one empty side hands its lists to the other child unchanged, and a child that will be
+//!   a leaf gets no events.
 use super::clip::{clipped_box, clipped_box_with, to_f64, Aabb, ClipBuffers};
 use super::{event_sort, BuildSettings, KdTree};
 use rayon::prelude::*;

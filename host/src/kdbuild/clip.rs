@@ -38,6 +38,28 @@ impl Aabb {
     }
 }
 
+/// The smaller of two numbers that are not NaN (scenes reject non-finite vertices, and clipping
+/// interpolates between finite ones): one comparison, where `f64::min` also handles NaN, and
+/// clipping straddlers runs at every split.
+#[inline]
+fn lesser<T: PartialOrd>(a: T, b: T) -> T {
+    if b < a {
+        b
+    } else {
+        a
+    }
+}
+
+/// The larger of two numbers that are not NaN (`lesser`).
+#[inline]
+fn greater<T: PartialOrd>(a: T, b: T) -> T {
+    if b > a {
+        b
+    } else {
+        a
+    }
+}
+
 /// A triangle's vertices in f64.
 pub type Tri64 = [[f64; 3]; 3];
 
@@ -64,7 +86,7 @@ impl Polygon {
 
     /// (min, max) of the vertices on axis `k`; only for a non-empty polygon.
     pub fn range(&self, k: usize) -> (f64, f64) {
-        self.vertices().iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lo.min(p[k]), hi.max(p[k])))
+        self.vertices().iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lesser(lo, p[k]), greater(hi, p[k])))
     }
 }
 
@@ -185,8 +207,8 @@ pub fn clipped_box_with(t: &Tri64, voxel: &Aabb, bufs: &mut ClipBuffers) -> Opti
     let mut hi = [f64::NEG_INFINITY; 3];
     for p in t {
         for k in 0..3 {
-            lo[k] = lo[k].min(p[k]);
-            hi[k] = hi[k].max(p[k]);
+            lo[k] = lesser(lo[k], p[k]);
+            hi[k] = greater(hi[k], p[k]);
         }
     }
     let inside = (0..3).all(|k| lo[k] >= voxel.lo[k] as f64 && hi[k] <= voxel.hi[k] as f64);
@@ -204,8 +226,8 @@ pub fn clipped_box_with(t: &Tri64, voxel: &Aabb, bufs: &mut ClipBuffers) -> Opti
     }
     let mut out = Aabb { lo: [0.0; 3], hi: [0.0; 3] };
     for k in 0..3 {
-        out.lo[k] = round_down(lo[k]).max(voxel.lo[k]);
-        out.hi[k] = round_up(hi[k]).min(voxel.hi[k]);
+        out.lo[k] = greater(round_down(lo[k]), voxel.lo[k]);
+        out.hi[k] = lesser(round_up(hi[k]), voxel.hi[k]);
         if out.lo[k] > out.hi[k] {
             return None;
         }

@@ -439,7 +439,16 @@ pub fn build(triangles: &[Triangle], bounds: Aabb, settings: &BuildSettings, max
     };
     let boxes: Vec<Option<Aabb>> = triangles.par_iter().map(|t| clipped_box(&to_f64(t), &bounds)).collect();
     let budget = if settings.max_refs_factor > 0.0 { settings.max_refs_factor as f64 * triangles.len().max(1) as f64 } else { f64::INFINITY };
-    let mut root = Node { triangles: Vec::with_capacity(triangles.len()), events: Default::default(), voxel: bounds, depth: 0, bad_refines: 0, budget };
+    // The root's lists at their exact sizes: grown by doubling, each would be copied into fresh
+    // memory a score of times, and this VM zeroes fresh pages slowly.
+    let mut sizes = [0usize; 3];
+    for b in boxes.iter().flatten() {
+        for (k, size) in sizes.iter_mut().enumerate() {
+            *size += if b.lo[k] == b.hi[k] { 1 } else { 2 };
+        }
+    }
+    let events = sizes.map(Vec::with_capacity);
+    let mut root = Node { triangles: Vec::with_capacity(triangles.len()), events, voxel: bounds, depth: 0, bad_refines: 0, budget };
     for (id, b) in boxes.iter().enumerate() {
         if let Some(b) = b {
             push_events(&mut root.events, root.triangles.len(), b);

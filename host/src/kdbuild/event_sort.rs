@@ -106,13 +106,7 @@ mod tests {
     /// positions, all kinds, both signs, zeros), short and long.
     #[test]
     fn radix_sort_equals_a_stable_comparison_sort() {
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state
-        };
+        let mut next = crate::kdbuild::xorshift(0x9e37_79b9_7f4a_7c15);
         let palette = [-3.5f32, -1.0, -0.0, 0.0, 1e-40, 0.25, 1.0, 7.0, 1e20];
         let mut tmp = Vec::new();
         for n in [0usize, 1, 5, RADIX_MIN - 1, RADIX_MIN, 3000, 20_000] {

@@ -135,6 +135,17 @@ pub fn leaf_tests(n: usize, block: usize) -> usize {
     }
 }
 
+/// Marsaglia's xorshift64: a seeded stream of inputs for the builder's randomised tests.
+#[cfg(test)]
+fn xorshift(mut state: u64) -> impl FnMut() -> u64 {
+    move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        state
+    }
+}
+
 /// The automatic depth limit (pbrt-v3's 8 + 1.3·log2 N), never beyond the traversal stack.
 pub fn default_max_depth(n: usize) -> u32 {
     let d = (8.0 + 1.3 * (n.max(1) as f64).log2()).round() as u32;

@@ -310,23 +310,12 @@ struct Sweep {
     axis: usize,
 }
 
-/// The cheapest plane a sweep has found so far.
-struct Best {
-    plane: Option<Plane>,
-    cost: f64,
-}
-
-impl Best {
-    /// Above this, an estimated cost (`Sah::estimate`) cannot be the plane's exact cost if that
-    /// beats the best: the estimate's relative error is under 2^-49.
-    #[inline]
-    fn threshold(&self) -> f64 {
-        if self.plane.is_none() {
-            f64::INFINITY
-        } else {
-            self.cost * (1.0 + 1e-12)
-        }
-    }
+/// Above this, an estimated cost (`Sah::estimate`) cannot be a plane's exact cost if that
+/// beats `best`, the cheapest plane a sweep has found so far: the estimate's relative error is
+/// under 2^-49.
+#[inline]
+fn threshold(best: &Option<Plane>) -> f64 {
+    best.map_or(f64::INFINITY, |b| b.cost * (1.0 + 1e-12))
 }
 
 impl Sweep {
@@ -551,25 +540,25 @@ impl Sah<'_> {
             return None;
         }
         let n = node.triangles.len();
-        let mut best = Best { plane: None, cost: f64::INFINITY };
+        let mut best = None;
         for (k, events) in node.events.iter().enumerate() {
             let (lo, hi) = (voxel.lo[k], voxel.hi[k]);
             let (e1, e2) = (voxel.extent((k + 1) % 3), voxel.extent((k + 2) % 3));
             let sweep = Sweep { face: e1 * e2, rim: e1 + e2, area, lo, hi, scale: 2.0 * self.intersection_cost / area, axis: k };
             self.sweep(events, n, &sweep, &mut best);
         }
-        best.plane
+        best
     }
 
     /// One axis's sweep (Wald & Havran §5.1): the candidates are the positions of the events,
     /// each priced with the references wholly below it, in it, and wholly above it.
-    fn sweep(&self, events: &[Event], n: usize, sweep: &Sweep, best: &mut Best) {
+    fn sweep(&self, events: &[Event], n: usize, sweep: &Sweep, best: &mut Option<Plane>) {
         // SAFETY: `Event` is a `repr(transparent)` u64.
         let raw: &[u64] = unsafe { std::slice::from_raw_parts(events.as_ptr().cast::<u64>(), events.len()) };
         // Ends and planars before the current group of eight, and planars up to the last run.
         let (mut ends_before, mut planar_before, mut planar_done) = (0usize, 0usize, 0usize);
         let mut below = 0usize;
-        let mut threshold = best.threshold();
+        let mut threshold = self::threshold(best);
         let mut first = 0;
         while first < raw.len() {
             let Group { mut runs, ends, planar: planars, bits } = run_masks(raw, first);
@@ -592,7 +581,7 @@ impl Sah<'_> {
                 let bound = if special { estimate * self.empty_factor.min(1.0) } else { estimate };
                 if bound <= threshold {
                     self.consider(sweep, bits, below, planar, above, best);
-                    threshold = best.threshold();
+                    threshold = self::threshold(best);
                 }
                 // Every event so far is an end, a planar or a start; the latter two are below
                 // the next position.
@@ -609,7 +598,7 @@ impl Sah<'_> {
     /// multiply where the cost divides: within a few roundings of positive terms (relative
     /// error under 2^-49) of `consider`'s exact cost. The exact cost takes two divisions, whose
     /// latency was a quarter of the sweep; a plane whose estimate lies clearly above the best so
-    /// far (`Best::threshold`) cannot beat it, so only the rest pay for the exact cost, which
+    /// far (`threshold`) cannot beat it, so only the rest pay for the exact cost, which
     /// alone decides. For any other plane, the estimate with `below` and `above` the references
     /// wholly on each side bounds every placement's cost from below once scaled by λ.
     #[inline]
@@ -621,7 +610,7 @@ impl Sah<'_> {
     /// Takes the plane at `bits` if it is cheaper than the best so far (the first of equals
     /// wins): the exact cost, whatever an estimate said.
     #[inline]
-    fn consider(&self, s: &Sweep, bits: u32, below: usize, planar: usize, above: usize, best: &mut Best) {
+    fn consider(&self, s: &Sweep, bits: u32, below: usize, planar: usize, above: usize, best: &mut Option<Plane>) {
         let pos = event_sort::position_of(bits);
         let found = if planar == 0 && below > 0 && above > 0 {
             // λ = 1, and the plane lies inside the voxel: `evaluate` without its cases (and
@@ -632,9 +621,9 @@ impl Sah<'_> {
             self.evaluate(s, pos, below, planar, above)
         };
         if let Some((cost, planar_below)) = found {
-            if best.plane.is_none() || cost < best.cost {
+            if best.is_none_or(|b| cost < b.cost) {
                 let (nb, na) = if planar_below { (below + planar, above) } else { (below, above + planar) };
-                *best = Best { plane: Some(Plane { axis: s.axis, pos, planar_below, cost, below: nb, above: na }), cost };
+                *best = Some(Plane { axis: s.axis, pos, planar_below, cost, below: nb, above: na });
             }
         }
     }
@@ -772,9 +761,8 @@ impl Sah<'_> {
                     // straddlers' fresh events, sorted, are merged in on the way, each after
                     // the old events of its key, as `merge_into` would place them: one pass
                     // instead of a partition and a merge that moves half of each list.
+                    // The pools handed out empty lists of at least these capacities.
                     debug_assert!(below.is_empty() && above.is_empty());
-                    below.reserve(cap_b);
-                    above.reserve(cap_a);
                     let (mut nb, mut na, mut ib, mut ia) = (0, 0, 0, 0);
                     // A fresh event goes first while it is below the old event's key floor, that
                     // is while its key is smaller (events of one key differ in references only).
@@ -897,13 +885,7 @@ mod tests {
     /// one event to hundreds (the masks' tail and full groups), for three leaf widths.
     #[test]
     fn sweep_chooses_the_plain_sweeps_plane() {
-        let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state
-        };
+        let mut next = crate::kdbuild::xorshift(0x2545_f491_4f6c_dd1d);
         let mut compared = 0;
         for trial in 0..3000 {
             let leaf_block = [1usize, 8, 3][trial % 3];
@@ -928,10 +910,10 @@ mod tests {
             let area = 2.0 * (e1 * e2 + (e1 + e2) * (hi - lo) as f64);
             let sweep = Sweep { face: e1 * e2, rim: e1 + e2, area, lo, hi, scale: 2.0 * sah.intersection_cost / area, axis: trial % 3 };
             let want = plain_sweep(&sah, &events, n, &sweep);
-            let mut best = Best { plane: None, cost: f64::INFINITY };
+            let mut best = None;
             sah.sweep(&events, n, &sweep, &mut best);
             let key = |p: Option<Plane>| p.map(|p| (p.axis, p.pos.to_bits(), p.planar_below, p.cost.to_bits(), p.below, p.above));
-            assert_eq!(key(best.plane), key(want), "trial {trial}: {n} references, leaf block {leaf_block}");
+            assert_eq!(key(best), key(want), "trial {trial}: {n} references, leaf block {leaf_block}");
             compared += want.is_some() as usize;
         }
         assert!(compared > 2000, "only {compared} sweeps found a plane");
@@ -963,19 +945,14 @@ mod tests {
         assert_eq!((again.as_ptr(), again.len()), (small_ptr, 0), "a given list comes back cleared");
     }
 
-    /// Packed short sorts and the radix sort order events as `order` does.
+    /// The integer sort of short lists and the radix sort of long ones both give the sweep
+    /// order: by position (IEEE total order), then kind.
     #[test]
     fn sort_events_follows_the_sweep_order() {
-        let mut state = 12345u32;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 17;
-            state ^= state << 5;
-            state
-        };
+        let mut next = crate::kdbuild::xorshift(12345);
         let mut tmp = Vec::new();
         for n in [0usize, 3, 100, event_sort::RADIX_MIN + 7, 5000] {
-            let mut list: Vec<Event> = (0..n).map(|r| Event::new([-2.0f32, -0.0, 0.0, 0.5, 3.0][next() as usize % 5] * (1 + next() % 3) as f32, r, next() % 3)).collect();
+            let mut list: Vec<Event> = (0..n).map(|r| Event::new([-2.0f32, -0.0, 0.0, 0.5, 3.0][next() as usize % 5] * (1 + next() % 3) as f32, r, (next() % 3) as u32)).collect();
             let mut want = list.clone();
             want.sort_by(|a, b| a.pos().total_cmp(&b.pos()).then(a.kind().cmp(&b.kind())));
             sort_events(&mut list, &mut tmp);

@@ -694,17 +694,30 @@ impl Sah<'_> {
         let mut code = std::mem::take(&mut scratch.code);
         code.clear();
         code.resize(n, STRADDLES);
-        // Without branches (the kinds come in no predictable order): an end at or below the
-        // plane keeps its reference below, a start at or above keeps it above, and a planar
-        // event keeps its reference on the side the plane chose for it. No reference gets both
-        // bits: its start lies below its end, so they cannot lie above and below the plane.
-        let planar_limit = pos_bits + plane.planar_below as u32;
-        for e in &node.events[k] {
-            let (kind, at) = (e.kind(), e.pos_bits());
-            let planar = kind == PLANAR;
-            let below = ((kind == END) & (at <= pos_bits)) | (planar & (at < planar_limit));
-            let above = ((kind == START) & (at >= pos_bits)) | (planar & (at >= planar_limit));
-            code[e.reference()] |= (below as u32) * KEEP_BELOW | (above as u32) * KEEP_ABOVE;
+        // An end at or below the plane keeps its reference below, a start at or above keeps it
+        // above, and a planar event keeps its reference on the side the plane chose for it. No
+        // reference gets both bits: its start lies below its end, so they cannot lie above and
+        // below the plane. The list is in sweep order, so these are ranges of it, found by
+        // binary search: before the planars at the plane, every event that is not a start
+        // keeps its reference below; from the starts at the plane on, every event that is not an
+        // end keeps it above; in between, the planars at the plane go to the chosen side. Each
+        // event then costs a load, two bit operations and a store, with no comparison of
+        // positions (kinds come in no predictable order, so each is a bit operation, not a
+        // branch).
+        {
+            let events = &node.events[k];
+            let at = |kind: u32| events.partition_point(|e| e.0 < ((pos_bits as u64) << 32 | (kind as u64) << REFERENCE_BITS));
+            let (planars, starts) = (at(PLANAR), at(START));
+            fn mark(range: &[Event], code: &mut [u32], bit: impl Fn(u32) -> u32) {
+                for e in range {
+                    code[e.reference()] |= bit(e.0 as u32);
+                }
+            }
+            // The kind's bits: an end has neither, a planar bit 30, a start bit 31.
+            mark(&events[..planars], &mut code, |low| (!low >> 1) & KEEP_BELOW);
+            let side = if plane.planar_below { KEEP_BELOW } else { KEEP_ABOVE };
+            mark(&events[planars..starts], &mut code, |_| side);
+            mark(&events[starts..], &mut code, |low| (low | low << 1) & KEEP_ABOVE);
         }
         let (below_voxel, above_voxel) = node.voxel.split(k, pos);
         // A child that `decide` will make a leaf before looking at its events (too few
@@ -768,26 +781,35 @@ impl Sah<'_> {
                     // is while its key is smaller (events of one key differ in references only).
                     let head_key = |list: &[Event], i: usize| list.get(i).map_or(u64::MAX, |e| e.0);
                     let (mut kb, mut ka) = (head_key(fresh_below, 0), head_key(fresh_above, 0));
+                    // The smaller of the two: the one comparison an old event needs.
+                    let mut next = kb.min(ka);
                     {
                         let (bs, as_) = (below.spare_capacity_mut()[..cap_b].as_mut_ptr(), above.spare_capacity_mut()[..cap_a].as_mut_ptr());
-                        for e in &old {
-                            let k = e.key_floor();
-                            while kb < k {
-                                debug_assert!(nb < cap_b);
-                                // SAFETY: in the spare capacity, as below.
-                                unsafe { bs.add(nb).write(MaybeUninit::new(fresh_below[ib])) };
-                                (nb, ib) = (nb + 1, ib + 1);
-                                kb = head_key(fresh_below, ib);
+                        let codes = &code[..n];
+                        for &Event(raw) in &old {
+                            let floor = raw & !REFERENCE_MASK;
+                            if next < floor {
+                                while kb < floor {
+                                    debug_assert!(nb < cap_b);
+                                    // SAFETY: in the spare capacity, as below.
+                                    unsafe { bs.add(nb).write(MaybeUninit::new(fresh_below[ib])) };
+                                    (nb, ib) = (nb + 1, ib + 1);
+                                    kb = head_key(fresh_below, ib);
+                                }
+                                while ka < floor {
+                                    debug_assert!(na < cap_a);
+                                    // SAFETY: in the spare capacity, as below.
+                                    unsafe { as_.add(na).write(MaybeUninit::new(fresh_above[ia])) };
+                                    (na, ia) = (na + 1, ia + 1);
+                                    ka = head_key(fresh_above, ia);
+                                }
+                                next = kb.min(ka);
                             }
-                            while ka < k {
-                                debug_assert!(na < cap_a);
-                                // SAFETY: in the spare capacity, as below.
-                                unsafe { as_.add(na).write(MaybeUninit::new(fresh_above[ia])) };
-                                (na, ia) = (na + 1, ia + 1);
-                                ka = head_key(fresh_above, ia);
-                            }
-                            let c = code[e.reference()];
-                            let m = moved(e, c);
+                            let r = (raw & REFERENCE_MASK) as usize;
+                            debug_assert!(r < n);
+                            // SAFETY: a node's events refer to its references, 0..n.
+                            let c = unsafe { *codes.get_unchecked(r) };
+                            let m = Event(floor | (c & INDEX) as u64);
                             // nb and na count the events kept so far, which the capacities
                             // exceed (`cap_b`, `cap_a`).
                             debug_assert!(nb < cap_b && na < cap_a);

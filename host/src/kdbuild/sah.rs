@@ -30,9 +30,10 @@
 //! - The work is passes over events: on the bunny's tree (eight-triangle leaves, about 37
 //!   references a leaf) the sweeps read 8.8 M events and the partitions 5.5 M, about a fifth of
 //!   the sweeps ending in a split that cuts off empty space. So the per-event work is kept
-//!   branch-free and the bookkeeping off that path: lists come from per-thread pools, a split
-//!   with one empty side hands its lists to the other child unchanged, and a child that will be
-//!   a leaf gets no events.
+//!   branch-free and the bookkeeping off that path: lists come from pools that the build's
+//!   tasks pass on to each other (`Sah::stash`), so memory freed anywhere serves later nodes, a
+//!   split with one empty side hands its lists to the other child unchanged, and a child that
+//!   will be a leaf gets no events.
 use super::clip::{clipped_box, clipped_box_with, to_f64, Aabb, ClipBuffers};
 use super::{event_sort, BuildSettings, KdTree};
 use rayon::prelude::*;
@@ -152,6 +153,67 @@ fn run_masks(raw: &[u64], first: usize) -> Group {
     g
 }
 
+/// The sweep's bookkeeping redone one event at a time, for tests: the counts `Sah::sweep` keeps
+/// at each group must be these, and every run in a group or block it passes over must have a
+/// bound above the threshold, as the per-run screen would have found.
+#[cfg(test)]
+#[derive(Default)]
+struct SweepCheck {
+    next: usize,
+    ends: usize,
+    planars: usize,
+    below: usize,
+    planar_done: usize,
+}
+
+#[cfg(test)]
+impl SweepCheck {
+    /// Steps to event `to`, calling `run` with (bits, below, planar, above) at each run end.
+    fn advance(&mut self, raw: &[u64], n: usize, to: usize, mut run: impl FnMut(u32, usize, usize, usize)) {
+        while self.next < to.min(raw.len()) {
+            let e = Event(raw[self.next]);
+            self.ends += (e.kind() == END) as usize;
+            self.planars += (e.kind() == PLANAR) as usize;
+            if raw.get(self.next + 1).is_none_or(|&x| x >> 32 != raw[self.next] >> 32) {
+                run(e.pos_bits(), self.below, self.planars - self.planar_done, n - self.ends - self.planars);
+                self.below = self.next + 1 - self.ends;
+                self.planar_done = self.planars;
+            }
+            self.next += 1;
+        }
+    }
+
+    fn state(&mut self, raw: &[u64], first: usize, kept: (usize, usize, usize, usize)) {
+        self.advance(raw, 0, first, |_, _, _, _| {});
+        assert_eq!(kept, (self.ends, self.planars, self.below, self.planar_done), "the sweep's counts at event {first}");
+    }
+
+    fn passed_over(&mut self, sah: &Sah, raw: &[u64], n: usize, sweep: &Sweep, to: usize, threshold: f64) {
+        self.advance(raw, n, to, |bits, below, planar, above| {
+            let estimate = sah.estimate(sweep, bits, below, above);
+            let bound = if (planar != 0) | (below == 0) | (above == 0) { estimate * sah.empty_factor.min(1.0) } else { estimate };
+            assert!(bound > threshold, "a run passed over at {bits:#x} has bound {bound} not above {threshold}");
+        });
+    }
+}
+
+/// Events a sweep screens at once before it looks at their groups (`Sah::sweep`).
+const BLOCK: usize = 4 * LANES;
+
+/// The starts and the planars among `events`.
+#[inline]
+fn kind_counts(events: &[u64]) -> (usize, usize) {
+    type Lanes = Simd<u64, 8>;
+    let (mut starts, mut planars) = (Lanes::splat(0), Lanes::splat(0));
+    for chunk in events.chunks_exact(8) {
+        let kind = (Lanes::from_slice(chunk) >> REFERENCE_BITS as u64) & Lanes::splat(3);
+        starts += kind >> 1;
+        planars += kind & Lanes::splat(1);
+    }
+    debug_assert!(events.len() % 8 == 0);
+    (starts.reduce_sum() as usize, planars.reduce_sum() as usize)
+}
+
 /// `LANES` events of a sweep (`run_masks`): bit l of each mask is about the l-th.
 struct Group {
     /// Events that end their run (the last of their position).
@@ -252,7 +314,7 @@ impl<T> Pool<T> {
     }
 }
 
-/// Buffers one thread reuses from node to node: the deep tail of the tree is millions of nodes
+/// Buffers a task reuses from node to node: the deep tail of the tree is millions of nodes
 /// of a few references each, where allocating and freeing a dozen lists per split would cost
 /// more than the split itself. Lists freed by a node go back to the pools and serve the next.
 #[derive(Default)]
@@ -381,9 +443,6 @@ impl Part {
     }
 }
 
-thread_local! {
-    static SCRATCH: std::cell::Cell<Scratch> = std::cell::Cell::new(Scratch::default());
-}
 
 impl Subtree {
     fn append(&mut self, other: Subtree) {
@@ -418,6 +477,10 @@ struct Sah<'a> {
     max_depth: u32,
     leaf_size: usize,
     bad_refines: u32,
+    /// Buffers between tasks: a task takes one set and gives it back when done, so lists freed
+    /// anywhere in the tree serve later nodes (memory the build has touched already, where
+    /// fresh pages cost a fault and zeroing each), and all of it is freed with the build.
+    stash: std::sync::Mutex<Vec<Scratch>>,
 }
 
 pub fn build(triangles: &[Triangle], bounds: Aabb, settings: &BuildSettings, max_depth: u32) -> KdTree {
@@ -430,6 +493,7 @@ pub fn build(triangles: &[Triangle], bounds: Aabb, settings: &BuildSettings, max
         max_depth,
         leaf_size: settings.leaf_size as usize,
         bad_refines: settings.bad_refines,
+        stash: Default::default(),
     };
     let boxes: Vec<Option<Aabb>> = triangles.par_iter().map(|t| clipped_box(&to_f64(t), &bounds)).collect();
     let budget = if settings.max_refs_factor > 0.0 { settings.max_refs_factor as f64 * triangles.len().max(1) as f64 } else { f64::INFINITY };
@@ -449,8 +513,18 @@ pub fn build(triangles: &[Triangle], bounds: Aabb, settings: &BuildSettings, max
             root.triangles.push(id as u32);
         }
     }
-    root.events.par_iter_mut().for_each(|list| sort_events(list, &mut Vec::new()));
+    root.events.par_iter_mut().for_each(|list| {
+        let mut scratch = sah.scratch();
+        sort_events(list, &mut scratch.sort);
+        // The sort's second buffer is the size of a root list: kept for the children's lists.
+        let tmp = std::mem::take(&mut scratch.sort);
+        scratch.recycle_events(tmp);
+        sah.keep(scratch);
+    });
     let part = sah.build_parallel(root);
+    // The buffers are freed before the final arrays are made, so that those can take their
+    // memory instead of fresh pages.
+    drop(std::mem::take(&mut *sah.stash.lock().unwrap_or_else(|e| e.into_inner())));
     let (nodes, indices) = part.size();
     let mut out = Subtree { nodes: Vec::with_capacity(nodes), indices: Vec::with_capacity(indices), depth: 0 };
     part.write(&mut out);
@@ -472,24 +546,34 @@ impl Sah<'_> {
         super::leaf_tests(n, self.leaf_block) as i64 as f64
     }
 
+    /// A set of buffers from the stash, or a new one.
+    fn scratch(&self) -> Scratch {
+        self.stash.lock().unwrap_or_else(|e| e.into_inner()).pop().unwrap_or_default()
+    }
+
+    fn keep(&self, scratch: Scratch) {
+        self.stash.lock().unwrap_or_else(|e| e.into_inner()).push(scratch);
+    }
+
     fn build_parallel(&self, node: Node) -> Part {
+        let mut scratch = self.scratch();
         if node.triangles.len() < PARALLEL_MIN {
             let mut out = Subtree::default();
-            // One pool per thread, kept from one subtree to the next.
-            let mut scratch = SCRATCH.take();
             self.build_into(node, &mut out, &mut scratch);
-            SCRATCH.set(scratch);
+            self.keep(scratch);
             return Part::Built(out);
         }
         match self.decide(&node) {
             None => {
+                self.keep(scratch);
                 let mut out = Subtree::default();
                 let mut node = node;
                 out.leaf(&mut node.triangles, node.depth);
                 Part::Built(out)
             }
             Some((plane, bad)) => {
-                let (below, above) = self.split(node, plane, bad, &mut Scratch::default());
+                let (below, above) = self.split(node, plane, bad, &mut scratch);
+                self.keep(scratch);
                 let (b, a) = rayon::join(|| self.build_parallel(below), || self.build_parallel(above));
                 Part::Split { axis: plane.axis as u32, pos: plane.pos, children: Box::new((b, a)) }
             }
@@ -564,8 +648,47 @@ impl Sah<'_> {
         let (mut ends_before, mut planar_before, mut planar_done) = (0usize, 0usize, 0usize);
         let mut below = 0usize;
         let mut threshold = self::threshold(best);
+        #[cfg(test)]
+        let mut check = SweepCheck::default();
         let mut first = 0;
         while first < raw.len() {
+            #[cfg(test)]
+            check.state(raw, first, (ends_before, planar_before, below, planar_done));
+            if first % BLOCK == 0 && threshold < f64::INFINITY && first + BLOCK < raw.len() {
+                // A block of groups, screened as a group is but from its first and last events
+                // and the counts of its kinds alone: passed over whole, it costs a sum of
+                // kinds and a short walk back to its last run end instead of four groups'
+                // masks.
+                let block = &raw[first..first + BLOCK];
+                let (starts, planars) = kind_counts(block);
+                let least_above = n - (ends_before + planar_before + BLOCK - starts);
+                let special = (planars != 0) | (planar_before != planar_done) | (below == 0) | (least_above == 0);
+                let bound = self.estimate_between(sweep, Event(block[0]).pos_bits(), Event(block[BLOCK - 1]).pos_bits(), below, least_above);
+                let bound = if special { bound * self.empty_factor.min(1.0) } else { bound };
+                if bound > threshold {
+                    #[cfg(test)]
+                    check.passed_over(self, raw, n, sweep, first + BLOCK, threshold);
+                    // The events after the block's last run end belong to a run that goes on.
+                    let (mut last, mut tail_ends, mut tail_planars) = (BLOCK, 0, 0);
+                    while last > 0 && raw[first + last - 1] >> 32 == raw[first + last] >> 32 {
+                        last -= 1;
+                        let kind = Event(raw[first + last]).kind();
+                        tail_ends += (kind == END) as usize;
+                        tail_planars += (kind == PLANAR) as usize;
+                    }
+                    let (ends_block, planar_block) = (BLOCK - starts - planars, planars);
+                    if last > 0 {
+                        // `last` events up to and including the last run end.
+                        let ends_here = ends_before + ends_block - tail_ends;
+                        below = first + last - ends_here;
+                        planar_done = planar_before + planar_block - tail_planars;
+                    }
+                    ends_before += ends_block;
+                    planar_before += planar_block;
+                    first += BLOCK;
+                    continue;
+                }
+            }
             let Group { mut runs, ends, planar: planars, bits } = run_masks(raw, first);
             let (ends_after, planar_after) = (ends_before + ends.count_ones() as usize, planar_before + planars.count_ones() as usize);
             if runs != 0 && threshold < f64::INFINITY {
@@ -582,6 +705,8 @@ impl Sah<'_> {
                 let bound = self.estimate_between(sweep, bits[runs.trailing_zeros() as usize], bits[last], below, least_above);
                 let bound = if special { bound * self.empty_factor.min(1.0) } else { bound };
                 if bound > threshold {
+                    #[cfg(test)]
+                    check.passed_over(self, raw, n, sweep, first + LANES, threshold);
                     let upto = (2u32 << last).wrapping_sub(1);
                     let ends_here = ends_before + (ends & upto).count_ones() as usize;
                     below = first + last + 1 - ends_here;
@@ -916,8 +1041,8 @@ mod tests {
     /// The sweep as Wald & Havran state it: every run priced exactly (`evaluate`), the first
     /// cheapest kept. What `Sah::sweep` must choose, bit for bit, with its estimates and its
     /// event-group masks and skipped groups.
-    fn plain_sweep(sah: &Sah, events: &[Event], n: usize, sweep: &Sweep) -> Option<Plane> {
-        let (mut best, mut below, mut above, mut i): (Option<Plane>, usize, usize, usize) = (None, 0, n, 0);
+    fn plain_sweep(sah: &Sah, events: &[Event], n: usize, sweep: &Sweep, best: Option<Plane>) -> Option<Plane> {
+        let (mut best, mut below, mut above, mut i): (Option<Plane>, usize, usize, usize) = (best, 0, n, 0);
         while i < events.len() {
             let bits = events[i].pos_bits();
             let mut count = [0usize; 3];
@@ -947,9 +1072,10 @@ mod tests {
         let mut compared = 0;
         for trial in 0..3000 {
             let leaf_block = [1usize, 8, 3][trial % 3];
-            let sah = Sah { triangles: &[], traversal_cost: 15.0, intersection_cost: 4.0, leaf_block, empty_factor: 0.8, max_depth: 30, leaf_size: 1, bad_refines: 2 };
-            let n = 1 + (next() % [4, 40, 400][trial % 7 % 3]) as usize;
-            let levels = 1 + next() % 12;
+            let sah = Sah { triangles: &[], traversal_cost: 15.0, intersection_cost: 4.0, leaf_block, empty_factor: 0.8, max_depth: 30, leaf_size: 1, bad_refines: 2, stash: Default::default() };
+            let n = 1 + (next() % [4, 40, 400, 3000][trial % 7 % 4]) as usize;
+            // Few positions make long runs across groups and blocks; many make short ones.
+            let levels = 1 + next() % [12, 12, 1000][trial % 5 % 3];
             let (lo, hi) = (0.0f32, levels as f32);
             let mut events = Vec::new();
             for r in 0..n {
@@ -967,12 +1093,22 @@ mod tests {
             let (e1, e2) = (1.0 + (next() % 5) as f64, 0.5 + (next() % 3) as f64);
             let area = 2.0 * (e1 * e2 + (e1 + e2) * (hi - lo) as f64);
             let sweep = Sweep { face: e1 * e2, rim: e1 + e2, area, lo, hi, scale: 2.0 * sah.intersection_cost / area, axis: trial % 3 };
-            let want = plain_sweep(&sah, &events, n, &sweep);
+            let want = plain_sweep(&sah, &events, n, &sweep, None);
             let mut best = None;
             sah.sweep(&events, n, &sweep, &mut best);
             let key = |p: Option<Plane>| p.map(|p| (p.axis, p.pos.to_bits(), p.planar_below, p.cost.to_bits(), p.below, p.above));
             assert_eq!(key(best), key(want), "trial {trial}: {n} references, leaf block {leaf_block}");
             compared += want.is_some() as usize;
+            // The same events on a second axis whose faces are a hair smaller: every plane there
+            // is a little cheaper than its twin on the first axis, so its best wins by a margin
+            // far below what separates neighbouring planes, and the groups and blocks that
+            // hold it are screened against a threshold just above their least cost. A bound
+            // that overshoots by a single leaf test passes it over.
+            let narrower = e1 * (1.0 - 1e-9);
+            let twin = Sweep { face: narrower * e2, rim: narrower + e2, axis: (trial + 1) % 3, ..sweep };
+            let want = plain_sweep(&sah, &events, n, &twin, want);
+            sah.sweep(&events, n, &twin, &mut best);
+            assert_eq!(key(best), key(want), "trial {trial}, second axis: {n} references, leaf block {leaf_block}");
         }
         assert!(compared > 2000, "only {compared} sweeps found a plane");
     }

@@ -34,7 +34,7 @@
 //!   tasks pass on to each other (`Sah::stash`), so memory freed anywhere serves later nodes, a
 //!   split with one empty side hands its lists to the other child unchanged, and a child that
 //!   will be a leaf gets no events.
-use super::clip::{clipped_box, clipped_box_with, to_f64, Aabb, ClipBuffers};
+use super::clip::{clipped_box, clipped_box_with, split_boxes, to_f64, Aabb, ClipBuffers};
 use super::{event_sort, BuildSettings, KdTree};
 use rayon::prelude::*;
 use std::mem::MaybeUninit;
@@ -896,10 +896,13 @@ impl Sah<'_> {
             let t = node.triangles[r];
             if *c == STRADDLES {
                 // Clipped to each child (perfect splits); a child it misses drops it.
-                for (s, voxel) in [below_voxel, above_voxel].iter().enumerate() {
-                    if let Some(b) = clipped_box_with(&to_f64(&self.triangles[t as usize]), voxel, &mut scratch.clip) {
+                let tri = to_f64(&self.triangles[t as usize]);
+                let boxes = split_boxes(&tri, &node.voxel, k, pos, &mut scratch.clip)
+                    .unwrap_or_else(|| [below_voxel, above_voxel].map(|voxel| clipped_box_with(&tri, &voxel, &mut scratch.clip)));
+                for (s, b) in boxes.iter().enumerate() {
+                    if let Some(b) = b {
                         if need[s] {
-                            push_events(&mut fresh[s], tris[s].len(), &b);
+                            push_events(&mut fresh[s], tris[s].len(), b);
                         }
                         tris[s].push(t);
                     }

@@ -668,14 +668,18 @@ impl Sah<'_> {
                 if bound > threshold {
                     #[cfg(test)]
                     check.passed_over(self, raw, n, sweep, first + BLOCK, threshold);
-                    // The events after the block's last run end belong to a run that goes on.
-                    let (mut last, mut tail_ends, mut tail_planars) = (BLOCK, 0, 0);
-                    while last > 0 && raw[first + last - 1] >> 32 == raw[first + last] >> 32 {
-                        last -= 1;
-                        let kind = Event(raw[first + last]).kind();
-                        tail_ends += (kind == END) as usize;
-                        tail_planars += (kind == PLANAR) as usize;
-                    }
+                    // The events after the block's last run end belong to a run that goes on,
+                    // at the position of the event after the block; sorted by kind within it,
+                    // they are found by binary search (a run can be thousands of events long
+                    // where walls lie in a plane).
+                    let next = raw[first + BLOCK] >> 32 << 32;
+                    let (last, tail_ends, tail_planars) = if block[BLOCK - 1] < next {
+                        (BLOCK, 0, 0)
+                    } else {
+                        let at = |kind: u32| block.partition_point(|&e| e < next | (kind as u64) << REFERENCE_BITS);
+                        let (tail, planar_tail, start_tail) = (at(END), at(PLANAR), at(START));
+                        (tail, planar_tail - tail, start_tail - planar_tail)
+                    };
                     let (ends_block, planar_block) = (BLOCK - starts - planars, planars);
                     if last > 0 {
                         // `last` events up to and including the last run end.

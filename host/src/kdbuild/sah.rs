@@ -106,16 +106,6 @@ impl Event {
     fn key(self) -> u64 {
         self.0 >> REFERENCE_BITS
     }
-    /// The event with its reference cleared: no greater than any event of its key, above every
-    /// event of a smaller key.
-    #[inline]
-    fn key_floor(self) -> u64 {
-        self.0 & !REFERENCE_MASK
-    }
-    #[inline]
-    fn with_reference(self, reference: u32) -> Self {
-        Self(self.key_floor() | reference as u64)
-    }
 }
 
 /// Events a sweep takes at once (`run_masks`).
@@ -247,21 +237,44 @@ fn push_events(events: &mut [Vec<Event>; 3], reference: usize, b: &Aabb) {
     }
 }
 
-/// Merges `b` into `a`, both in sweep order, in place from the back (no second buffer).
-fn merge_into(a: &mut Vec<Event>, b: &[Event]) {
-    let (mut i, mut j) = (a.len(), b.len());
-    a.resize(i + j, Event(0));
-    let mut k = a.len();
-    while j > 0 {
-        k -= 1;
-        if i > 0 && a[i - 1].key() > b[j - 1].key() {
-            a[k] = a[i - 1];
-            i -= 1;
-        } else {
-            a[k] = b[j - 1];
-            j -= 1;
+/// Writes into `out` (empty, with room for `cap`) the events of `old` whose reference's code has
+/// bit `keep` set, renumbered to the index in the code's low bits, merged with `fresh` (sorted)
+/// in sweep order: a fresh event goes before the old events of greater key. `cap` is at least
+/// one more than the events kept and fresh, or `old.len() + fresh.len()`: every event is
+/// written at the next slot and counted only if kept, without a branch on that. The partition
+/// of one side of a split (`Sah::split`).
+fn keep_side(old: &[Event], fresh: &[Event], code: &[u32], keep: u32, out: &mut Vec<Event>, cap: usize) {
+    const INDEX: u64 = (1 << 30) - 1;
+    debug_assert!(out.is_empty() && out.capacity() >= cap);
+    let slots = out.spare_capacity_mut()[..cap].as_mut_ptr();
+    let head = |i: usize| fresh.get(i).map_or(u64::MAX, |e| e.0);
+    let (mut count, mut taken) = (0usize, 0usize);
+    let mut next = head(0);
+    for &Event(raw) in old {
+        let floor = raw & !REFERENCE_MASK;
+        while next < floor {
+            debug_assert!(count < cap);
+            // SAFETY: in the spare capacity, as below.
+            unsafe { slots.add(count).write(MaybeUninit::new(fresh[taken])) };
+            (count, taken) = (count + 1, taken + 1);
+            next = head(taken);
         }
+        let r = (raw & REFERENCE_MASK) as usize;
+        debug_assert!(r < code.len());
+        // SAFETY: a node's events refer to its references, one code each.
+        let c = unsafe { *code.get_unchecked(r) };
+        debug_assert!(count < cap);
+        // SAFETY: `count` counts the events kept so far and the fresh ones merged, below `cap`
+        // (see above).
+        unsafe { slots.add(count).write(MaybeUninit::new(Event(floor | (c as u64 & INDEX)))) };
+        count += ((c >> keep) & 1) as usize;
     }
+    let rest = &fresh[taken..];
+    assert!(count + rest.len() <= cap);
+    // SAFETY: within the spare capacity (the assertion); the lists do not overlap.
+    unsafe { std::ptr::copy_nonoverlapping(rest.as_ptr(), slots.add(count).cast::<Event>(), rest.len()) };
+    // SAFETY: the first `count + rest.len()` slots were written, and the list was empty.
+    unsafe { out.set_len(count + rest.len()) };
 }
 
 /// A node under construction: its references (global triangle ids), events and voxel.
@@ -869,13 +882,18 @@ impl Sah<'_> {
         // event then costs a load, two bit operations and a store, with no comparison of
         // positions (kinds come in no predictable order, so each is a bit operation, not a
         // branch).
-        {
+        let (planars, starts): (usize, usize) = {
             let events = &node.events[k];
             let at = |kind: u32| events.partition_point(|e| e.0 < ((pos_bits as u64) << 32 | (kind as u64) << REFERENCE_BITS));
-            let (planars, starts) = (at(PLANAR), at(START));
+            (at(PLANAR), at(START))
+        };
+        {
+            let events = &node.events[k];
             fn mark(range: &[Event], code: &mut [u32], bit: impl Fn(u32) -> u32) {
                 for e in range {
-                    code[e.reference()] |= bit(e.0 as u32);
+                    debug_assert!(e.reference() < code.len());
+                    // SAFETY: a node's events refer to its references, one code each.
+                    unsafe { *code.get_unchecked_mut(e.reference()) |= bit(e.0 as u32) };
                 }
             }
             // The kind's bits: an end has neither, a planar bit 30, a start bit 31.
@@ -889,39 +907,66 @@ impl Sah<'_> {
         // references, or at the depth limit) gets none: over a third of the children are such.
         let depth = node.depth + 1;
         let need = [plane.below, plane.above].map(|count| count > self.leaf_size && depth < self.max_depth);
-        let mut tris: [Vec<u32>; 2] = [scratch.triangles(plane.below), scratch.triangles(plane.above)];
+        // Room for one more than each side can hold (`Plane::below`, `Plane::above` bound the
+        // references, straddlers included): a reference is written to both lists and counted
+        // in its own, without a branch on the side.
+        let mut tris: [Vec<u32>; 2] = [scratch.triangles(plane.below + 1), scratch.triangles(plane.above + 1)];
         let mut fresh = std::mem::take(&mut scratch.fresh);
-        for r in 0..n {
-            // A straddler's vertices are read from the scene, at random: fetch them ahead.
-            if code.get(r + PREFETCH_AHEAD) == Some(&STRADDLES) {
-                prefetch(&self.triangles[node.triangles[r + PREFETCH_AHEAD] as usize]);
-            }
-            let c = &mut code[r];
-            let t = node.triangles[r];
-            if *c == STRADDLES {
-                // Clipped to each child (perfect splits); a child it misses drops it.
-                let tri = to_f64(&self.triangles[t as usize]);
-                let boxes = split_boxes(&tri, &node.voxel, k, pos, &mut scratch.clip)
-                    .unwrap_or_else(|| [below_voxel, above_voxel].map(|voxel| clipped_box_with(&tri, &voxel, &mut scratch.clip)));
-                for (s, b) in boxes.iter().enumerate() {
-                    if let Some(b) = b {
-                        if need[s] {
-                            push_events(&mut fresh[s], tris[s].len(), b);
-                        }
-                        tris[s].push(t);
-                    }
+        {
+            let caps = [plane.below + 1, plane.above + 1];
+            let [below_tris, above_tris] = &mut tris;
+            let lists = [below_tris.spare_capacity_mut()[..caps[0]].as_mut_ptr(), above_tris.spare_capacity_mut()[..caps[1]].as_mut_ptr()];
+            let mut counts = [0usize; 2];
+            for r in 0..n {
+                // A straddler's vertices are read from the scene, at random: fetch them ahead.
+                if code.get(r + PREFETCH_AHEAD) == Some(&STRADDLES) {
+                    prefetch(&self.triangles[node.triangles[r + PREFETCH_AHEAD] as usize]);
                 }
-            } else {
-                let s = (*c >> 31) as usize;
-                debug_assert!(tris[s].len() as u32 <= INDEX);
-                *c |= tris[s].len() as u32;
-                tris[s].push(t);
+                let c = code[r];
+                let t = node.triangles[r];
+                if c == STRADDLES {
+                    // Clipped to each child (perfect splits); a child it misses drops it.
+                    let tri = to_f64(&self.triangles[t as usize]);
+                    let boxes = split_boxes(&tri, &node.voxel, k, pos, &mut scratch.clip)
+                        .unwrap_or_else(|| [below_voxel, above_voxel].map(|voxel| clipped_box_with(&tri, &voxel, &mut scratch.clip)));
+                    for (s, b) in boxes.iter().enumerate() {
+                        if let Some(b) = b {
+                            if need[s] {
+                                push_events(&mut fresh[s], counts[s], b);
+                            }
+                            assert!(counts[s] < caps[s]);
+                            // SAFETY: within the spare capacity (the assertion).
+                            unsafe { lists[s].add(counts[s]).write(MaybeUninit::new(t)) };
+                            counts[s] += 1;
+                        }
+                    }
+                } else {
+                    let above = (c >> 31) as usize;
+                    let index = if above != 0 { counts[1] } else { counts[0] };
+                    debug_assert!(index as u32 <= INDEX);
+                    code[r] = c | index as u32;
+                    // Each count stays below its side's bound, so both slots lie within the
+                    // spare capacities (one past the bound at most for the side not taken).
+                    debug_assert!(counts[0] < caps[0] && counts[1] < caps[1]);
+                    // SAFETY: as just said.
+                    unsafe {
+                        lists[0].add(counts[0]).write(MaybeUninit::new(t));
+                        lists[1].add(counts[1]).write(MaybeUninit::new(t));
+                    }
+                    counts[0] += 1 - above;
+                    counts[1] += above;
+                }
+            }
+            // SAFETY: slots below each count were written (each written slot is rewritten until
+            // its count moves past it), and the lists were empty.
+            unsafe {
+                below_tris.set_len(counts[0]);
+                above_tris.set_len(counts[1]);
             }
         }
         let mut events: [[Vec<Event>; 3]; 2] = Default::default();
         let Node { triangles: old_triangles, events: [old_x, old_y, old_z], voxel: _, depth: _, bad_refines: _, budget } = node;
         for (axis, old) in [old_x, old_y, old_z].into_iter().enumerate() {
-            let moved = |e: &Event, c: u32| e.with_reference(c & INDEX);
             for side in &mut fresh {
                 if !side[axis].is_empty() {
                     sort_events(&mut side[axis], &mut scratch.sort);
@@ -932,7 +977,16 @@ impl Sah<'_> {
             // writes one slot past the events it keeps.
             let (cap_b, cap_a) = ((old.len() + fresh_below.len()).min(2 * tris[0].len() + 1), (old.len() + fresh_above.len()).min(2 * tris[1].len() + 1));
             let (mut below, mut above) = (scratch.events(if need[0] { cap_b } else { 0 }), scratch.events(if need[1] { cap_a } else { 0 }));
+            // On the split axis, the events below the starts at the plane keep references
+            // below or none, and those from the planars at it on keep them above or none: each
+            // side is partitioned on its own, one store an event.
+            let split_axis = axis == k;
+            let (range_below, range_above) = if split_axis { (&old[..starts], &old[planars..]) } else { (&old[..], &old[..]) };
             match need {
+                [true, true] if split_axis => {
+                    keep_side(range_below, fresh_below, &code, 30, &mut below, cap_b);
+                    keep_side(range_above, fresh_above, &code, 31, &mut above, cap_a);
+                }
                 [true, true] => {
                     // Every event is written to both lists and kept by the side it belongs to:
                     // the side is as good as random in the large nodes, where a branch on it
@@ -940,8 +994,8 @@ impl Sah<'_> {
                     // to the parent's length first: only the slots a child keeps (and one past)
                     // are touched (the zeroing was half of the build's page faults). The
                     // straddlers' fresh events, sorted, are merged in on the way, each after
-                    // the old events of its key, as `merge_into` would place them: one pass
-                    // instead of a partition and a merge that moves half of each list.
+                    // the old events of its key (as `keep_side` places them): one pass instead
+                    // of a partition and a merge that moves half of each list.
                     // The pools handed out empty lists of at least these capacities.
                     debug_assert!(below.is_empty() && above.is_empty());
                     let (mut nb, mut na, mut ib, mut ia) = (0, 0, 0, 0);
@@ -1006,14 +1060,8 @@ impl Sah<'_> {
                         above.set_len(na);
                     }
                 }
-                [true, false] => {
-                    below.extend(old.iter().filter_map(|e| Some(code[e.reference()]).filter(|&c| c & KEEP_BELOW != 0).map(|c| moved(e, c))));
-                    merge_into(&mut below, fresh_below);
-                }
-                [false, true] => {
-                    above.extend(old.iter().filter_map(|e| Some(code[e.reference()]).filter(|&c| c & KEEP_ABOVE != 0).map(|c| moved(e, c))));
-                    merge_into(&mut above, fresh_above);
-                }
+                [true, false] => keep_side(range_below, fresh_below, &code, 30, &mut below, cap_b),
+                [false, true] => keep_side(range_above, fresh_above, &code, 31, &mut above, cap_a),
                 [false, false] => {}
             }
             scratch.recycle_events(old);

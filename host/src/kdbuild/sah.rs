@@ -31,7 +31,7 @@
 //!   references a leaf) the sweeps read 8.8 M events and the partitions 5.5 M, about a fifth of
 //!   the sweeps ending in a split that cuts off empty space. So the per-event work is kept
 //!   branch-free and the bookkeeping off that path: lists come from pools that the build's
-//!   tasks pass on to each other (`Sah::stash`), so memory freed anywhere serves later nodes, a
+//!   tasks pass on to each other (`Stash`), so memory freed anywhere serves later nodes, a
 //!   split with one empty side hands its lists to the other child unchanged, and a child that
 //!   will be a leaf gets no events.
 use super::clip::{clipped_box, clipped_box_with, split_boxes, to_f64, Aabb, ClipBuffers};
@@ -97,7 +97,7 @@ impl Event {
     fn reference(self) -> usize {
         (self.0 & REFERENCE_MASK) as usize
     }
-    #[inline]
+    #[cfg(test)]
     fn kind(self) -> u32 {
         (self.0 >> REFERENCE_BITS) as u32 & 3
     }
@@ -125,21 +125,24 @@ fn run_masks(raw: &[u64], first: usize) -> Group {
         let k = v & Lanes::splat(KIND);
         (k.simd_eq(Lanes::splat((END as u64) << REFERENCE_BITS)).to_bitmask() as u32, k.simd_eq(Lanes::splat((PLANAR as u64) << REFERENCE_BITS)).to_bitmask() as u32)
     };
-    if let (Some(cur), Some(next)) = (raw.get(first..first + LANES), raw.get(first + 1..first + 1 + LANES)) {
-        let (v, w) = (Lanes::from_slice(cur), Lanes::from_slice(next));
+    let masks = |events: &[u64]| {
+        let (v, w) = (Lanes::from_slice(&events[..LANES]), Lanes::from_slice(&events[1..LANES + 1]));
         let runs = (v >> 32).simd_ne(w >> 32).to_bitmask() as u32;
         let (ends, planar) = kinds(v);
-        return Group { runs, ends, planar, bits: (v >> 32).cast::<u32>().to_array() };
+        Group { runs, ends, planar, bits: (v >> 32).cast::<u32>().to_array() }
+    };
+    if raw.len() > first + LANES {
+        return masks(&raw[first..]);
     }
-    // The list's last few events.
-    let mut g = Group { runs: 0, ends: 0, planar: 0, bits: [0; LANES] };
-    for (l, &e) in raw[first..].iter().take(LANES).enumerate() {
-        let last = raw.get(first + l + 1).is_none_or(|&x| x >> 32 != e >> 32);
-        g.runs |= (last as u32) << l;
-        g.ends |= ((Event(e).kind() == END) as u32) << l;
-        g.planar |= ((Event(e).kind() == PLANAR) as u32) << l;
-        g.bits[l] = Event(e).pos_bits();
-    }
+    // The list's last few events, padded with events of no kind at a position no event has
+    // (positions are never NaN): the last real event ends its run, and the masks are cut to
+    // the real ones. Most lists of a deep tree are this short.
+    let rest = raw.len() - first;
+    let mut padded = [u64::MAX; LANES + 1];
+    padded[..rest].copy_from_slice(&raw[first..]);
+    let mut g = masks(&padded);
+    let real = (1u32 << rest) - 1;
+    (g.runs, g.ends, g.planar) = (g.runs & real, g.ends & real, g.planar & real);
     g
 }
 
@@ -490,10 +493,25 @@ struct Sah<'a> {
     max_depth: u32,
     leaf_size: usize,
     bad_refines: u32,
-    /// Buffers between tasks: a task takes one set and gives it back when done, so lists freed
-    /// anywhere in the tree serve later nodes (memory the build has touched already, where
-    /// fresh pages cost a fault and zeroing each), and all of it is freed with the build.
-    stash: std::sync::Mutex<Vec<Scratch>>,
+}
+
+/// Buffers between tasks: a task takes one set and gives it back when done, so lists freed
+/// anywhere in the tree serve later nodes (memory the build has touched already, where fresh
+/// pages cost a fault and zeroing each), and all of it is freed with the build. Kept apart
+/// from `Sah`, whose shared reference then promises the compiler that no setting changes
+/// while a sweep runs (a lock inside made it reload them at every candidate).
+#[derive(Default)]
+struct Stash(std::sync::Mutex<Vec<Scratch>>);
+
+impl Stash {
+    /// A set of buffers from the stash, or a new one.
+    fn take(&self) -> Scratch {
+        self.0.lock().unwrap_or_else(|e| e.into_inner()).pop().unwrap_or_default()
+    }
+
+    fn keep(&self, scratch: Scratch) {
+        self.0.lock().unwrap_or_else(|e| e.into_inner()).push(scratch);
+    }
 }
 
 pub fn build(triangles: &[Triangle], bounds: Aabb, settings: &BuildSettings, max_depth: u32) -> KdTree {
@@ -506,8 +524,8 @@ pub fn build(triangles: &[Triangle], bounds: Aabb, settings: &BuildSettings, max
         max_depth,
         leaf_size: settings.leaf_size as usize,
         bad_refines: settings.bad_refines,
-        stash: Default::default(),
     };
+    let stash = Stash::default();
     let boxes: Vec<Option<Aabb>> = triangles.par_iter().map(|t| clipped_box(&to_f64(t), &bounds)).collect();
     let budget = if settings.max_refs_factor > 0.0 { settings.max_refs_factor as f64 * triangles.len().max(1) as f64 } else { f64::INFINITY };
     // The root's lists at their exact sizes: grown by doubling, each would be copied into fresh
@@ -527,17 +545,17 @@ pub fn build(triangles: &[Triangle], bounds: Aabb, settings: &BuildSettings, max
         }
     }
     root.events.par_iter_mut().for_each(|list| {
-        let mut scratch = sah.scratch();
+        let mut scratch = stash.take();
         sort_events(list, &mut scratch.sort);
         // The sort's second buffer is the size of a root list: kept for the children's lists.
         let tmp = std::mem::take(&mut scratch.sort);
         scratch.recycle_events(tmp);
-        sah.keep(scratch);
+        stash.keep(scratch);
     });
-    let part = sah.build_parallel(root);
+    let part = sah.build_parallel(root, &stash);
     // The buffers are freed before the final arrays are made, so that those can take their
     // memory instead of fresh pages.
-    drop(std::mem::take(&mut *sah.stash.lock().unwrap_or_else(|e| e.into_inner())));
+    drop(stash);
     let (nodes, indices) = part.size();
     let mut out = Subtree { nodes: Vec::with_capacity(nodes), indices: Vec::with_capacity(indices), depth: 0 };
     part.write(&mut out);
@@ -559,26 +577,17 @@ impl Sah<'_> {
         super::leaf_tests(n, self.leaf_block) as i64 as f64
     }
 
-    /// A set of buffers from the stash, or a new one.
-    fn scratch(&self) -> Scratch {
-        self.stash.lock().unwrap_or_else(|e| e.into_inner()).pop().unwrap_or_default()
-    }
-
-    fn keep(&self, scratch: Scratch) {
-        self.stash.lock().unwrap_or_else(|e| e.into_inner()).push(scratch);
-    }
-
-    fn build_parallel(&self, node: Node) -> Part {
-        let mut scratch = self.scratch();
+    fn build_parallel(&self, node: Node, stash: &Stash) -> Part {
+        let mut scratch = stash.take();
         if node.triangles.len() < PARALLEL_MIN {
             let mut out = Subtree::default();
             self.build_into(node, &mut out, &mut scratch);
-            self.keep(scratch);
+            stash.keep(scratch);
             return Part::Built(out);
         }
         match self.decide(&node) {
             None => {
-                self.keep(scratch);
+                stash.keep(scratch);
                 let mut out = Subtree::default();
                 let mut node = node;
                 out.leaf(&mut node.triangles, node.depth);
@@ -586,8 +595,8 @@ impl Sah<'_> {
             }
             Some((plane, bad)) => {
                 let (below, above) = self.split(node, plane, bad, &mut scratch);
-                self.keep(scratch);
-                let (b, a) = rayon::join(|| self.build_parallel(below), || self.build_parallel(above));
+                stash.keep(scratch);
+                let (b, a) = rayon::join(|| self.build_parallel(below, stash), || self.build_parallel(above, stash));
                 Part::Split { axis: plane.axis as u32, pos: plane.pos, children: Box::new((b, a)) }
             }
         }
@@ -1127,7 +1136,7 @@ mod tests {
         let mut compared = 0;
         for trial in 0..3000 {
             let leaf_block = [1usize, 8, 3][trial % 3];
-            let sah = Sah { triangles: &[], traversal_cost: 15.0, intersection_cost: 4.0, leaf_block, empty_factor: 0.8, max_depth: 30, leaf_size: 1, bad_refines: 2, stash: Default::default() };
+            let sah = Sah { triangles: &[], traversal_cost: 15.0, intersection_cost: 4.0, leaf_block, empty_factor: 0.8, max_depth: 30, leaf_size: 1, bad_refines: 2 };
             let n = 1 + (next() % [4, 40, 400, 3000][trial % 7 % 4]) as usize;
             // Few positions make long runs across groups and blocks; many make short ones.
             let levels = 1 + next() % [12, 12, 1000][trial % 5 % 3];

@@ -123,15 +123,57 @@ pub struct KdTree {
     pub depth: u32,
 }
 
-/// ⌈n / block⌉, the leaf tests of `n` triangles in blocks of `block` (at least 1). A division
-/// by a width known only at run time is tens of cycles, and the SAH sweep asks twice per
-/// candidate plane; the widths in use are powers of two, a shift.
+/// ⌈n / block⌉, the leaf tests of `n` triangles in blocks of `block` (at least 1).
 #[inline]
 pub fn leaf_tests(n: usize, block: usize) -> usize {
-    if block.is_power_of_two() {
-        (n + block - 1) >> block.trailing_zeros()
-    } else {
-        n.div_ceil(block)
+    LeafTests::new(block).count(n)
+}
+
+/// ⌈n / block⌉ for one block width, as an add, a multiply and a shift: a division by a width
+/// known only at run time is tens of cycles, and the SAH sweep asks twice per candidate plane.
+/// The multiplier is Granlund & Montgomery's (1994) ⌈2^(32+l) / block⌉ with l = ⌈log2 block⌉,
+/// exact for every dividend below 2^32 (`n + block - 1`, references being fewer than 2^30);
+/// for a power of two it is a plain shift.
+#[derive(Clone, Copy, Debug)]
+pub struct LeafTests {
+    round: u64,
+    magic: u64,
+    shift: u32,
+}
+
+impl LeafTests {
+    pub fn new(block: usize) -> Self {
+        let block = block.max(1) as u64;
+        let l = block.next_power_of_two().trailing_zeros();
+        Self { round: block - 1, magic: (1u64 << (32 + l)).div_ceil(block), shift: 32 + l }
+    }
+
+    #[inline]
+    pub fn count(self, n: usize) -> usize {
+        debug_assert!((n as u64 + self.round) < 1 << 32);
+        ((n as u64 + self.round) * self.magic >> self.shift) as usize
+    }
+}
+
+#[cfg(test)]
+mod leaf_tests_tests {
+    use super::LeafTests;
+
+    /// The multiply and shift give ⌈n / block⌉ for every width the settings allow, at small
+    /// counts, around multiples of the width and up to the largest count a build can ask.
+    #[test]
+    fn leaf_tests_divide_exactly() {
+        for block in 1..=64usize {
+            let tests = LeafTests::new(block);
+            let mut counts: Vec<usize> = (0..5000).collect();
+            for m in [1usize << 10, 1 << 20, (1 << 30) / block] {
+                counts.extend((m * block).saturating_sub(3)..m * block + 3);
+            }
+            counts.push((1 << 30) - 1);
+            for n in counts {
+                assert_eq!(tests.count(n), n.div_ceil(block), "{n} triangles in blocks of {block}");
+            }
+        }
     }
 }
 

@@ -35,7 +35,7 @@
 //!   split with one empty side hands its lists to the other child unchanged, and a child that
 //!   will be a leaf gets no events.
 use super::clip::{clipped_box, clipped_box_with, split_boxes, to_f64, Aabb, ClipBuffers};
-use super::{event_sort, BuildSettings, KdTree};
+use super::{event_sort, BuildSettings, KdTree, LeafTests};
 use rayon::prelude::*;
 use std::mem::MaybeUninit;
 use std::simd::prelude::*;
@@ -488,7 +488,8 @@ struct Sah<'a> {
     triangles: &'a [Triangle],
     traversal_cost: f64,
     intersection_cost: f64,
-    leaf_block: usize,
+    /// ⌈N / leaf block⌉ (`BuildSettings::leaf_block`).
+    leaf_block: LeafTests,
     empty_factor: f64,
     max_depth: u32,
     leaf_size: usize,
@@ -519,7 +520,7 @@ pub fn build(triangles: &[Triangle], bounds: Aabb, settings: &BuildSettings, max
         triangles,
         traversal_cost: settings.traversal_cost as f64,
         intersection_cost: settings.intersection_cost as f64,
-        leaf_block: settings.leaf_block.max(1) as usize,
+        leaf_block: LeafTests::new(settings.leaf_block.max(1) as usize),
         empty_factor: settings.empty_factor as f64,
         max_depth,
         leaf_size: settings.leaf_size as usize,
@@ -574,7 +575,7 @@ impl Sah<'_> {
     /// same value: counts are far below 2^53).
     #[inline]
     fn leaf_tests(&self, n: usize) -> f64 {
-        super::leaf_tests(n, self.leaf_block) as i64 as f64
+        self.leaf_block.count(n) as i64 as f64
     }
 
     fn build_parallel(&self, node: Node, stash: &Stash) -> Part {
@@ -1136,7 +1137,7 @@ mod tests {
         let mut compared = 0;
         for trial in 0..3000 {
             let leaf_block = [1usize, 8, 3][trial % 3];
-            let sah = Sah { triangles: &[], traversal_cost: 15.0, intersection_cost: 4.0, leaf_block, empty_factor: 0.8, max_depth: 30, leaf_size: 1, bad_refines: 2 };
+            let sah = Sah { triangles: &[], traversal_cost: 15.0, intersection_cost: 4.0, leaf_block: LeafTests::new(leaf_block), empty_factor: 0.8, max_depth: 30, leaf_size: 1, bad_refines: 2 };
             let n = 1 + (next() % [4, 40, 400, 3000][trial % 7 % 4]) as usize;
             // Few positions make long runs across groups and blocks; many make short ones.
             let levels = 1 + next() % [12, 12, 1000][trial % 5 % 3];

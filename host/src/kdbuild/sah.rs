@@ -499,8 +499,7 @@ struct Sah<'a> {
 /// Buffers between tasks: a task takes one set and gives it back when done, so lists freed
 /// anywhere in the tree serve later nodes (memory the build has touched already, where fresh
 /// pages cost a fault and zeroing each), and all of it is freed with the build. Kept apart
-/// from `Sah`, whose shared reference then promises the compiler that no setting changes
-/// while a sweep runs (a lock inside made it reload them at every candidate).
+/// from `Sah`, which holds only the settings and the scene, so no lock sits among them.
 #[derive(Default)]
 struct Stash(std::sync::Mutex<Vec<Scratch>>);
 
@@ -680,7 +679,7 @@ impl Sah<'_> {
             if first % BLOCK == 0 && threshold < f64::INFINITY && first + BLOCK < raw.len() {
                 // A block of groups, screened as a group is but from its first and last events
                 // and the counts of its kinds alone: passed over whole, it costs a sum of
-                // kinds and a short walk back to its last run end instead of four groups'
+                // kinds and a binary search for its last run end instead of four groups'
                 // masks.
                 let block = &raw[first..first + BLOCK];
                 let (starts, planars) = kind_counts(block);

@@ -1,7 +1,7 @@
 //! kdtrace host: scene loading (OBJ, TOML scene files, compiled `.kdc` scenes), k-d tree
 //! construction, the CPU reference renderer, the wgpu runner for the rust-gpu kernel, image
 //! output and the CPU ≡ GPU check.
-// The k-d builder compares eight events at once (`kdbuild::sah`), as the shared crate's leaf
+// The k-d builder compares sixteen events at once (`kdbuild::sah`), as the shared crate's leaf
 // test tests eight triangles; the pinned nightly has `core::simd`.
 #![feature(portable_simd)]
 pub mod camera;

@@ -224,6 +224,12 @@ pub fn clipped_box_with(t: &Tri64, voxel: &Aabb, bufs: &mut ClipBuffers) -> Opti
         }
         // On overflow the triangle's own box stands in: larger, still conservative.
     }
+    rounded_box(&lo, &hi, voxel)
+}
+
+/// The f64 box `lo`..`hi` rounded outward to f32 and clamped to `voxel`; `None` when nothing of
+/// it is left in the voxel.
+fn rounded_box(lo: &[f64; 3], hi: &[f64; 3], voxel: &Aabb) -> Option<Aabb> {
     let mut out = Aabb { lo: [0.0; 3], hi: [0.0; 3] };
     for k in 0..3 {
         out.lo[k] = greater(round_down(lo[k]), voxel.lo[k]);
@@ -282,19 +288,11 @@ pub fn split_boxes(t: &Tri64, voxel: &Aabb, k: usize, pos: f32, bufs: &mut ClipB
     }
     let (below, above) = voxel.split(k, pos);
     let mut boxes = [None; 2];
-    'sides: for (side, half) in [below, above].iter().enumerate() {
-        if lo[side][0] > hi[side][0] {
-            continue;
+    for (side, half) in [below, above].iter().enumerate() {
+        // A side that took no point is missed.
+        if lo[side][0] <= hi[side][0] {
+            boxes[side] = rounded_box(&lo[side], &hi[side], half);
         }
-        let mut out = Aabb { lo: [0.0; 3], hi: [0.0; 3] };
-        for j in 0..3 {
-            out.lo[j] = greater(round_down(lo[side][j]), half.lo[j]);
-            out.hi[j] = lesser(round_up(hi[side][j]), half.hi[j]);
-            if out.lo[j] > out.hi[j] {
-                continue 'sides;
-            }
-        }
-        boxes[side] = Some(out);
     }
     Some(boxes)
 }

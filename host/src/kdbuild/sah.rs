@@ -60,6 +60,14 @@ fn prefetch<T>(x: &T) {
     let _ = x;
 }
 
+/// The partition's word per reference (`Sah::split`): the side that keeps its events
+/// (`KEEP_BELOW`, `KEEP_ABOVE`, or neither for a straddler, whose events are made anew), then
+/// also its index in that child, in the low bits, where a moved event wants it.
+const STRADDLES: u32 = 0;
+const KEEP_BELOW: u32 = 1 << 30;
+const KEEP_ABOVE: u32 = 1 << 31;
+const INDEX: u32 = (1 << 30) - 1;
+
 /// Nodes with fewer references than this build their subtree on one thread.
 const PARALLEL_MIN: usize = 4096;
 
@@ -183,8 +191,7 @@ impl SweepCheck {
 
     fn passed_over(&mut self, sah: &Sah, raw: &[u64], n: usize, sweep: &Sweep, to: usize, threshold: f64) {
         self.advance(raw, n, to, |bits, below, planar, above| {
-            let estimate = sah.estimate(sweep, bits, below, above);
-            let bound = if (planar != 0) | (below == 0) | (above == 0) { estimate * sah.empty_factor.min(1.0) } else { estimate };
+            let bound = sah.screened(sah.estimate(sweep, bits, below, above), (planar != 0) | (below == 0) | (above == 0));
             assert!(bound > threshold, "a run passed over at {bits:#x} has bound {bound} not above {threshold}");
         });
     }
@@ -241,13 +248,12 @@ fn push_events(events: &mut [Vec<Event>; 3], reference: usize, b: &Aabb) {
 }
 
 /// Writes into `out` (empty, with room for `cap`) the events of `old` whose reference's code has
-/// bit `keep` set, renumbered to the index in the code's low bits, merged with `fresh` (sorted)
+/// the bit `keep` (`KEEP_BELOW` or `KEEP_ABOVE`), renumbered to the index in the code's low bits, merged with `fresh` (sorted)
 /// in sweep order: a fresh event goes before the old events of greater key. `cap` is at least
 /// one more than the events kept and fresh, or `old.len() + fresh.len()`: every event is
 /// written at the next slot and counted only if kept, without a branch on that. The partition
 /// of one side of a split (`Sah::split`).
 fn keep_side(old: &[Event], fresh: &[Event], code: &[u32], keep: u32, out: &mut Vec<Event>, cap: usize) {
-    const INDEX: u64 = (1 << 30) - 1;
     debug_assert!(out.is_empty() && out.capacity() >= cap);
     let slots = out.spare_capacity_mut()[..cap].as_mut_ptr();
     let head = |i: usize| fresh.get(i).map_or(u64::MAX, |e| e.0);
@@ -269,8 +275,8 @@ fn keep_side(old: &[Event], fresh: &[Event], code: &[u32], keep: u32, out: &mut 
         debug_assert!(count < cap);
         // SAFETY: `count` counts the events kept so far and the fresh ones merged, below `cap`
         // (see above).
-        unsafe { slots.add(count).write(MaybeUninit::new(Event(floor | (c as u64 & INDEX)))) };
-        count += ((c >> keep) & 1) as usize;
+        unsafe { slots.add(count).write(MaybeUninit::new(Event(floor | (c & INDEX) as u64))) };
+        count += (c & keep != 0) as usize;
     }
     let rest = &fresh[taken..];
     assert!(count + rest.len() <= cap);
@@ -685,8 +691,7 @@ impl Sah<'_> {
                 let (starts, planars) = kind_counts(block);
                 let least_above = n - (ends_before + planar_before + BLOCK - starts);
                 let special = (planars != 0) | (planar_before != planar_done) | (below == 0) | (least_above == 0);
-                let bound = self.estimate_between(sweep, Event(block[0]).pos_bits(), Event(block[BLOCK - 1]).pos_bits(), below, least_above);
-                let bound = if special { bound * self.empty_factor.min(1.0) } else { bound };
+                let bound = self.screened(self.estimate_between(sweep, Event(block[0]).pos_bits(), Event(block[BLOCK - 1]).pos_bits(), below, least_above), special);
                 if bound > threshold {
                     #[cfg(test)]
                     check.passed_over(self, raw, n, sweep, first + BLOCK, threshold);
@@ -728,8 +733,7 @@ impl Sah<'_> {
                 // A run with planar references (this group's, or an unfinished run's from the
                 // last group) or an empty side is screened by its estimate times the smaller λ.
                 let special = (planars != 0) | (planar_before != planar_done) | (below == 0) | (least_above == 0);
-                let bound = self.estimate_between(sweep, bits[runs.trailing_zeros() as usize], bits[last], below, least_above);
-                let bound = if special { bound * self.empty_factor.min(1.0) } else { bound };
+                let bound = self.screened(self.estimate_between(sweep, bits[runs.trailing_zeros() as usize], bits[last], below, least_above), special);
                 if bound > threshold {
                     #[cfg(test)]
                     check.passed_over(self, raw, n, sweep, first + LANES, threshold);
@@ -755,8 +759,7 @@ impl Sah<'_> {
                 // with the references wholly on each side, times the smaller λ, bounds them from
                 // below.
                 let special = (planar != 0) | (below == 0) | (above == 0);
-                let estimate = self.estimate(sweep, bits, below, above);
-                let bound = if special { estimate * self.empty_factor.min(1.0) } else { estimate };
+                let bound = self.screened(self.estimate(sweep, bits, below, above), special);
                 if bound <= threshold {
                     self.consider(sweep, bits, below, planar, above, best);
                     threshold = self::threshold(best);
@@ -782,6 +785,18 @@ impl Sah<'_> {
     fn estimate(&self, s: &Sweep, bits: u32, below: usize, above: usize) -> f64 {
         let (below_faces, above_faces) = s.faces(event_sort::position_of(bits));
         self.traversal_cost + s.scale * (below_faces * self.leaf_tests(below) + above_faces * self.leaf_tests(above))
+    }
+
+    /// What an estimate is screened by: the estimate itself for a plain plane, times the smaller
+    /// λ for a `special` one (planar references or an empty side), whose placements `evaluate`
+    /// weighs and which this bounds from below.
+    #[inline]
+    fn screened(&self, estimate: f64, special: bool) -> f64 {
+        if special {
+            estimate * self.empty_factor.min(1.0)
+        } else {
+            estimate
+        }
     }
 
     /// `estimate` with the face below the plane at `low` and the face above it at `high`: no
@@ -864,14 +879,9 @@ impl Sah<'_> {
 
     /// Partitions the node's references and events for `plane` (Wald & Havran §5.3).
     fn split(&self, node: Node, plane: Plane, bad_refines: u32, scratch: &mut Scratch) -> (Node, Node) {
-        // One word per reference: the side that keeps its events (`KEEP_BELOW`, `KEEP_ABOVE`, or
-        // neither for a straddler, whose events are made anew), then also its index in that
-        // child, in the low bits, where a moved event wants it. The partition adds the keep bits
-        // to the children's counts as they are, with no comparisons.
-        const STRADDLES: u32 = 0;
-        const KEEP_BELOW: u32 = 1 << 30;
-        const KEEP_ABOVE: u32 = 1 << 31;
-        const INDEX: u32 = (1 << 30) - 1;
+        // One code per reference (`STRADDLES`, `KEEP_BELOW`, `KEEP_ABOVE`, `INDEX`). The
+        // partition adds the keep bits to the children's counts as they are, with no
+        // comparisons.
         let (k, pos) = (plane.axis, plane.pos);
         let pos_bits = event_sort::ordered_bits(pos);
         if plane.below == 0 || plane.above == 0 {
@@ -891,13 +901,10 @@ impl Sah<'_> {
         // event then costs a load, two bit operations and a store, with no comparison of
         // positions (kinds come in no predictable order, so each is a bit operation, not a
         // branch).
-        let (planars, starts): (usize, usize) = {
+        let (planars, starts) = {
             let events = &node.events[k];
             let at = |kind: u32| events.partition_point(|e| e.0 < ((pos_bits as u64) << 32 | (kind as u64) << REFERENCE_BITS));
-            (at(PLANAR), at(START))
-        };
-        {
-            let events = &node.events[k];
+            let (planars, starts) = (at(PLANAR), at(START));
             fn mark(range: &[Event], code: &mut [u32], bit: impl Fn(u32) -> u32) {
                 for e in range {
                     debug_assert!(e.reference() < code.len());
@@ -910,7 +917,8 @@ impl Sah<'_> {
             let side = if plane.planar_below { KEEP_BELOW } else { KEEP_ABOVE };
             mark(&events[planars..starts], &mut code, |_| side);
             mark(&events[starts..], &mut code, |low| (low | low << 1) & KEEP_ABOVE);
-        }
+            (planars, starts)
+        };
         let (below_voxel, above_voxel) = node.voxel.split(k, pos);
         // A child that `decide` will make a leaf before looking at its events (too few
         // references, or at the depth limit) gets none: over a third of the children are such.
@@ -950,7 +958,7 @@ impl Sah<'_> {
                         }
                     }
                 } else {
-                    let above = (c >> 31) as usize;
+                    let above = (c & KEEP_ABOVE != 0) as usize;
                     let index = if above != 0 { counts[1] } else { counts[0] };
                     debug_assert!(index as u32 <= INDEX);
                     code[r] = c | index as u32;
@@ -993,8 +1001,8 @@ impl Sah<'_> {
             let (range_below, range_above) = if split_axis { (&old[..starts], &old[planars..]) } else { (&old[..], &old[..]) };
             match need {
                 [true, true] if split_axis => {
-                    keep_side(range_below, fresh_below, &code, 30, &mut below, cap_b);
-                    keep_side(range_above, fresh_above, &code, 31, &mut above, cap_a);
+                    keep_side(range_below, fresh_below, &code, KEEP_BELOW, &mut below, cap_b);
+                    keep_side(range_above, fresh_above, &code, KEEP_ABOVE, &mut above, cap_a);
                 }
                 [true, true] => {
                     // Every event is written to both lists and kept by the side it belongs to:
@@ -1049,8 +1057,8 @@ impl Sah<'_> {
                                 bs.add(nb).write(MaybeUninit::new(m));
                                 as_.add(na).write(MaybeUninit::new(m));
                             }
-                            nb += ((c >> 30) & 1) as usize;
-                            na += (c >> 31) as usize;
+                            nb += (c & KEEP_BELOW != 0) as usize;
+                            na += (c & KEEP_ABOVE != 0) as usize;
                         }
                         // SAFETY: the rest of each fresh list fits in the capacity it was counted in.
                         unsafe {
@@ -1069,8 +1077,8 @@ impl Sah<'_> {
                         above.set_len(na);
                     }
                 }
-                [true, false] => keep_side(range_below, fresh_below, &code, 30, &mut below, cap_b),
-                [false, true] => keep_side(range_above, fresh_above, &code, 31, &mut above, cap_a),
+                [true, false] => keep_side(range_below, fresh_below, &code, KEEP_BELOW, &mut below, cap_b),
+                [false, true] => keep_side(range_above, fresh_above, &code, KEEP_ABOVE, &mut above, cap_a),
                 [false, false] => {}
             }
             scratch.recycle_events(old);

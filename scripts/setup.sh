@@ -22,8 +22,15 @@ if [ ${#need_apt[@]} -gt 0 ]; then
 fi
 
 toolchain=$(sed -n 's/^channel *= *"\(.*\)"/\1/p' rust-toolchain.toml)
-if ! rustup run "$toolchain" rustc --version >/dev/null 2>&1 || \
-   ! rustup component list --toolchain "$toolchain" --installed 2>/dev/null | grep -q '^rustc-dev'; then
+components=(rust-src rustc-dev llvm-tools rustfmt clippy)
+if ! rustup run "$toolchain" rustc --version >/dev/null 2>&1; then
   echo "setup: installing Rust $toolchain" >&2
-  rustup toolchain install "$toolchain" --profile minimal --component rust-src,rustc-dev,llvm-tools
+  rustup toolchain install "$toolchain" --profile minimal --component "$(IFS=,; echo "${components[*]}")"
 fi
+installed=$(rustup component list --toolchain "$toolchain" --installed 2>/dev/null)
+for c in "${components[@]}"; do
+  if ! grep -q "^$c" <<<"$installed"; then
+    echo "setup: adding $c to Rust $toolchain" >&2
+    rustup component add --toolchain "$toolchain" "$c"
+  fi
+done

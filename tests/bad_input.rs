@@ -25,11 +25,27 @@ struct Case {
 const TRI: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
 
 fn render(scene: &str) -> Vec<String> {
-    vec!["render".into(), format!("{{dir}}/{scene}"), "--out".into(), "{dir}/never.png".into(), "--spp".into(), "1".into(), "--width".into(), "4".into(), "--height".into(), "4".into()]
+    vec![
+        "render".into(),
+        format!("{{dir}}/{scene}"),
+        "--out".into(),
+        "{dir}/never.png".into(),
+        "--spp".into(),
+        "1".into(),
+        "--width".into(),
+        "4".into(),
+        "--height".into(),
+        "4".into(),
+    ]
 }
 
 fn case(name: &'static str, files: Vec<(&'static str, &str)>, args: Vec<String>, needles: &[&str]) -> Case {
-    Case { name, files: files.into_iter().map(|(n, t)| (n, t.as_bytes().to_vec())).collect(), args, needles: needles.iter().map(|s| s.to_string()).collect() }
+    Case {
+        name,
+        files: files.into_iter().map(|(n, t)| (n, t.as_bytes().to_vec())).collect(),
+        args,
+        needles: needles.iter().map(|s| s.to_string()).collect(),
+    }
 }
 
 /// A scene file `s.toml` beside a good one-triangle `m.obj`.
@@ -38,7 +54,12 @@ fn toml_case(name: &'static str, toml: &str, needles: &[&str]) -> Case {
 }
 
 fn kdc_case(name: &'static str, bytes: Vec<u8>, needles: &[&str]) -> Case {
-    Case { name, files: vec![("c.kdc", bytes)], args: render("c.kdc"), needles: needles.iter().map(|s| s.to_string()).collect() }
+    Case {
+        name,
+        files: vec![("c.kdc", bytes)],
+        args: render("c.kdc"),
+        needles: needles.iter().map(|s| s.to_string()).collect(),
+    }
 }
 
 fn cases() -> Vec<Case> {
@@ -53,69 +74,265 @@ fn cases() -> Vec<Case> {
     vec![
         // ---- OBJ and MTL ----
         case("missing OBJ", vec![], render("absent.obj"), &["absent.obj", "cannot read"]),
-        case("NaN coordinate", vec![("a.obj", "v 0 0 0\nv 1 0 0\nv 0 nan 0\nf 1 2 3\n")], render("a.obj"), &["a.obj:3", "not finite"]),
-        case("1e39 coordinate", vec![("a.obj", "v 0 0 0\nv 1e39 0 0\nv 0 1 0\nf 1 2 3\n")], render("a.obj"), &["a.obj:2", "1e39"]),
-        case("inf coordinate", vec![("a.obj", "v 0 0 0\nv 1 0 0\nv 0 1 -inf\nf 1 2 3\n")], render("a.obj"), &["a.obj:3"]),
-        case("vertex with two coordinates", vec![("a.obj", "v 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")], render("a.obj"), &["a.obj:1", "3 coordinates"]),
-        case("vertex that is not a number", vec![("a.obj", "v 0 0 0\nv 1 zero 0\nv 0 1 0\nf 1 2 3\n")], render("a.obj"), &["a.obj:2", "not a number"]),
+        case(
+            "NaN coordinate",
+            vec![("a.obj", "v 0 0 0\nv 1 0 0\nv 0 nan 0\nf 1 2 3\n")],
+            render("a.obj"),
+            &["a.obj:3", "not finite"],
+        ),
+        case(
+            "1e39 coordinate",
+            vec![("a.obj", "v 0 0 0\nv 1e39 0 0\nv 0 1 0\nf 1 2 3\n")],
+            render("a.obj"),
+            &["a.obj:2", "1e39"],
+        ),
+        case(
+            "inf coordinate",
+            vec![("a.obj", "v 0 0 0\nv 1 0 0\nv 0 1 -inf\nf 1 2 3\n")],
+            render("a.obj"),
+            &["a.obj:3"],
+        ),
+        case(
+            "vertex with two coordinates",
+            vec![("a.obj", "v 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")],
+            render("a.obj"),
+            &["a.obj:1", "3 coordinates"],
+        ),
+        case(
+            "vertex that is not a number",
+            vec![("a.obj", "v 0 0 0\nv 1 zero 0\nv 0 1 0\nf 1 2 3\n")],
+            render("a.obj"),
+            &["a.obj:2", "not a number"],
+        ),
         case("no faces", vec![("a.obj", TRI)], render("a.obj"), &["a.obj", "no triangles"]),
-        case("face index beyond the vertices", vec![("a.obj", &format!("{TRI}f 1 2 9\n"))], render("a.obj"), &["a.obj:4", "index 9 out of range"]),
-        case("negative face index beyond the vertices", vec![("a.obj", &format!("{TRI}f -1 -2 -7\n"))], render("a.obj"), &["a.obj:4", "index -7 out of range"]),
+        case(
+            "face index beyond the vertices",
+            vec![("a.obj", &format!("{TRI}f 1 2 9\n"))],
+            render("a.obj"),
+            &["a.obj:4", "index 9 out of range"],
+        ),
+        case(
+            "negative face index beyond the vertices",
+            vec![("a.obj", &format!("{TRI}f -1 -2 -7\n"))],
+            render("a.obj"),
+            &["a.obj:4", "index -7 out of range"],
+        ),
         case("face index zero", vec![("a.obj", &format!("{TRI}f 0 1 2\n"))], render("a.obj"), &["a.obj:4", "index 0"]),
-        case("MTL with NaN Kd", vec![("a.obj", &format!("mtllib a.mtl\n{TRI}usemtl x\nf 1 2 3\n")), ("a.mtl", "newmtl x\nKd nan 0 0\n")], render("a.obj"), &["a.mtl", "\"x\"", "Kd"]),
-        case("MTL with negative Ke", vec![("a.obj", &format!("mtllib a.mtl\n{TRI}usemtl x\nf 1 2 3\n")), ("a.mtl", "newmtl x\nKe -1 0 0\n")], render("a.obj"), &["a.mtl", "Ke"]),
-        case("MTL with 1e39 Ke", vec![("a.obj", &format!("mtllib a.mtl\n{TRI}usemtl x\nf 1 2 3\n")), ("a.mtl", "newmtl x\nKe 1e39 0 0\n")], render("a.obj"), &["a.mtl", "Ke"]),
-        case("MTL that does not parse", vec![("a.obj", &format!("mtllib a.mtl\n{TRI}usemtl x\nf 1 2 3\n")), ("a.mtl", "newmtl x\nKd red green blue\n")], render("a.obj"), &["a.mtl:2", "Kd needs three numbers"]),
-        case("MTL colour with one number (tobj 4 panics on it)", vec![("a.obj", &format!("mtllib a.mtl\n{TRI}usemtl x\nf 1 2 3\n")), ("a.mtl", "newmtl x\nKd 0.\n")], render("a.obj"), &["a.mtl:2", "Kd needs three numbers"]),
-        case("MTL line that tobj rejects", vec![("a.obj", &format!("mtllib a.mtl\n{TRI}usemtl x\nf 1 2 3\n")), ("a.mtl", "newmtl x\nNs shiny\n")], render("a.obj"), &["a.mtl", "material library"]),
-        case("MTL that cannot be read (a folder)", vec![("a.obj", &format!("mtllib sub\n{TRI}f 1 2 3\n")), ("sub/x", "")], render("a.obj"), &["sub", "cannot read material library"]),
-        case("missing texture", vec![("a.obj", &format!("mtllib a.mtl\n{TRI}usemtl x\nf 1 2 3\n")), ("a.mtl", "newmtl x\nKd 1 1 1\nmap_Kd -bm 1 wood.png\n")], render("a.obj"), &["a.mtl", "texture \"wood.png\" not found"]),
+        case(
+            "MTL with NaN Kd",
+            vec![("a.obj", &format!("mtllib a.mtl\n{TRI}usemtl x\nf 1 2 3\n")), ("a.mtl", "newmtl x\nKd nan 0 0\n")],
+            render("a.obj"),
+            &["a.mtl", "\"x\"", "Kd"],
+        ),
+        case(
+            "MTL with negative Ke",
+            vec![("a.obj", &format!("mtllib a.mtl\n{TRI}usemtl x\nf 1 2 3\n")), ("a.mtl", "newmtl x\nKe -1 0 0\n")],
+            render("a.obj"),
+            &["a.mtl", "Ke"],
+        ),
+        case(
+            "MTL with 1e39 Ke",
+            vec![("a.obj", &format!("mtllib a.mtl\n{TRI}usemtl x\nf 1 2 3\n")), ("a.mtl", "newmtl x\nKe 1e39 0 0\n")],
+            render("a.obj"),
+            &["a.mtl", "Ke"],
+        ),
+        case(
+            "MTL that does not parse",
+            vec![
+                ("a.obj", &format!("mtllib a.mtl\n{TRI}usemtl x\nf 1 2 3\n")),
+                ("a.mtl", "newmtl x\nKd red green blue\n"),
+            ],
+            render("a.obj"),
+            &["a.mtl:2", "Kd needs three numbers"],
+        ),
+        case(
+            "MTL colour with one number (tobj 4 panics on it)",
+            vec![("a.obj", &format!("mtllib a.mtl\n{TRI}usemtl x\nf 1 2 3\n")), ("a.mtl", "newmtl x\nKd 0.\n")],
+            render("a.obj"),
+            &["a.mtl:2", "Kd needs three numbers"],
+        ),
+        case(
+            "MTL line that tobj rejects",
+            vec![("a.obj", &format!("mtllib a.mtl\n{TRI}usemtl x\nf 1 2 3\n")), ("a.mtl", "newmtl x\nNs shiny\n")],
+            render("a.obj"),
+            &["a.mtl", "material library"],
+        ),
+        case(
+            "MTL that cannot be read (a folder)",
+            vec![("a.obj", &format!("mtllib sub\n{TRI}f 1 2 3\n")), ("sub/x", "")],
+            render("a.obj"),
+            &["sub", "cannot read material library"],
+        ),
+        case(
+            "missing texture",
+            vec![
+                ("a.obj", &format!("mtllib a.mtl\n{TRI}usemtl x\nf 1 2 3\n")),
+                ("a.mtl", "newmtl x\nKd 1 1 1\nmap_Kd -bm 1 wood.png\n"),
+            ],
+            render("a.obj"),
+            &["a.mtl", "texture \"wood.png\" not found"],
+        ),
         case("unknown scene extension", vec![("a.ply", "ply\n")], render("a.ply"), &["a.ply", "unknown scene type"]),
         // ---- TOML scene files ----
         toml_case("TOML syntax error", "[camera\nwidth = 4\n", &["s.toml:1:8"]),
         toml_case("unknown top-level key", &format!("colour = 1\n{mesh}"), &["s.toml:1:1", "unknown field `colour`"]),
-        toml_case("unknown camera key", &format!("[camera]\nfov = 40\nlens = 35\n{mesh}"), &["s.toml:3:1", "unknown field `lens`"]),
-        toml_case("unknown mesh key", "[[mesh]]\nfile = \"m.obj\"\nscael = 2\n", &["s.toml:3:1", "unknown field `scael`"]),
+        toml_case(
+            "unknown camera key",
+            &format!("[camera]\nfov = 40\nlens = 35\n{mesh}"),
+            &["s.toml:3:1", "unknown field `lens`"],
+        ),
+        toml_case(
+            "unknown mesh key",
+            "[[mesh]]\nfile = \"m.obj\"\nscael = 2\n",
+            &["s.toml:3:1", "unknown field `scael`"],
+        ),
         toml_case("wrong type for spp", &format!("[render]\nspp = \"many\"\n{mesh}"), &["s.toml:2:7", "invalid type"]),
         toml_case("zero width", &format!("[camera]\nwidth = 0\n{mesh}"), &["s.toml:2:9", "resolution 0"]),
         toml_case("negative height", &format!("[camera]\nheight = -5\n{mesh}"), &["s.toml:2:10", "resolution -5"]),
         toml_case("absurd spp", &format!("[render]\nspp = 10000000000\n{mesh}"), &["s.toml:2:7", "spp 10000000000"]),
         toml_case("absurd bounces", &format!("[render]\nbounces = 5000\n{mesh}"), &["s.toml:2:11", "bounces 5000"]),
         toml_case("negative seed", &format!("[render]\nseed = -1\n{mesh}"), &["s.toml:2:8"]),
-        toml_case("non-positive time limit", &format!("[render]\ntime_limit = -1.0\n{mesh}"), &["s.toml:2:14", "time limit"]),
-        toml_case("unknown sampler", &format!("[render]\nsampler = \"halton\"\n{mesh}"), &["s.toml:2:11", "halton", "sobol"]),
+        toml_case(
+            "non-positive time limit",
+            &format!("[render]\ntime_limit = -1.0\n{mesh}"),
+            &["s.toml:2:14", "time limit"],
+        ),
+        toml_case(
+            "unknown sampler",
+            &format!("[render]\nsampler = \"halton\"\n{mesh}"),
+            &["s.toml:2:11", "halton", "sobol"],
+        ),
         toml_case("NaN eye", &format!("[camera]\neye = [nan, 0, 0]\n{mesh}"), &["s.toml:2:7", "not finite"]),
-        toml_case("1e39 target", &format!("[camera]\ntarget = [0, 1e39, 0]\n{mesh}"), &["s.toml:2:10", "not finite or beyond"]),
+        toml_case(
+            "1e39 target",
+            &format!("[camera]\ntarget = [0, 1e39, 0]\n{mesh}"),
+            &["s.toml:2:10", "not finite or beyond"],
+        ),
         toml_case("eye with two components", &format!("[camera]\neye = [1, 2]\n{mesh}"), &["s.toml:2:7"]),
         toml_case("field of view 200", &format!("[camera]\nfov = 200\n{mesh}"), &["s.toml:2:7", "field of view"]),
-        toml_case("eye equals target", &format!("[camera]\neye = [1, 1, 1]\ntarget = [1, 1, 1]\n{mesh}"), &["eye and target"]),
-        toml_case("negative environment", &format!("environment = [-1, 0, 0]\n{mesh}"), &["s.toml:1:15", "non-negative"]),
+        toml_case(
+            "eye equals target",
+            &format!("[camera]\neye = [1, 1, 1]\ntarget = [1, 1, 1]\n{mesh}"),
+            &["eye and target"],
+        ),
+        toml_case(
+            "negative environment",
+            &format!("environment = [-1, 0, 0]\n{mesh}"),
+            &["s.toml:1:15", "non-negative"],
+        ),
         toml_case("no meshes", "[camera]\nfov = 30\n", &["s.toml", "no [[mesh]]"]),
         toml_case("missing mesh file", "[[mesh]]\nfile = \"gone.obj\"\n", &["s.toml:2:8", "gone.obj", "cannot read"]),
-        toml_case("unknown whole-mesh material", "[[mesh]]\nfile = \"m.obj\"\nmaterial = \"gold\"\n", &["s.toml:3:12", "no material named \"gold\""]),
-        toml_case("override of an MTL name the mesh lacks", "[materials.red]\nalbedo = [1, 0, 0]\n[[mesh]]\nfile = \"m.obj\"\nmaterials = { wall = \"red\" }\n", &["s.toml:5:22", "no MTL material named \"wall\""]),
-        toml_case("reserved material type", &format!("[materials.glass]\ntype = \"dielectric\"\n{mesh}"), &["s.toml:2:8", "not supported yet"]),
-        toml_case("unknown material type", &format!("[materials.x]\ntype = \"velvet\"\n{mesh}"), &["s.toml:2:8", "unknown material type"]),
-        toml_case("albedo above one", &format!("[materials.x]\nalbedo = [1.5, 0, 0]\n{mesh}"), &["s.toml:2:10", "albedo"]),
+        toml_case(
+            "unknown whole-mesh material",
+            "[[mesh]]\nfile = \"m.obj\"\nmaterial = \"gold\"\n",
+            &["s.toml:3:12", "no material named \"gold\""],
+        ),
+        toml_case(
+            "override of an MTL name the mesh lacks",
+            "[materials.red]\nalbedo = [1, 0, 0]\n[[mesh]]\nfile = \"m.obj\"\nmaterials = { wall = \"red\" }\n",
+            &["s.toml:5:22", "no MTL material named \"wall\""],
+        ),
+        toml_case(
+            "reserved material type",
+            &format!("[materials.glass]\ntype = \"dielectric\"\n{mesh}"),
+            &["s.toml:2:8", "not supported yet"],
+        ),
+        toml_case(
+            "unknown material type",
+            &format!("[materials.x]\ntype = \"velvet\"\n{mesh}"),
+            &["s.toml:2:8", "unknown material type"],
+        ),
+        toml_case(
+            "albedo above one",
+            &format!("[materials.x]\nalbedo = [1.5, 0, 0]\n{mesh}"),
+            &["s.toml:2:10", "albedo"],
+        ),
         toml_case("zero scale", "[[mesh]]\nfile = \"m.obj\"\nscale = 0\n", &["s.toml:3:9", "non-zero"]),
         toml_case("scale of the wrong shape", "[[mesh]]\nfile = \"m.obj\"\nscale = [1, 2]\n", &["s.toml:3:9", "scale"]),
-        toml_case("transform overflowing f32", "[[mesh]]\nfile = \"m.obj\"\nscale = 5e17\ntranslate = [9e17, 0, 0]\n", &["s.toml:2:8", "placed vertex"]),
+        toml_case(
+            "transform overflowing f32",
+            "[[mesh]]\nfile = \"m.obj\"\nscale = 5e17\ntranslate = [9e17, 0, 0]\n",
+            &["s.toml:2:8", "placed vertex"],
+        ),
         case("scene file that is not UTF-8", vec![("s.toml", "\u{0}")], render("s.toml"), &["s.toml"]),
         // ---- compiled scenes ----
         kdc_case("empty .kdc", Vec::new(), &["c.kdc", "truncated"]),
-        kdc_case("OBJ renamed .kdc", format!("{TRI}f 1 2 3\n").into_bytes(), &["c.kdc", "not a kdtrace compiled scene"]),
+        kdc_case(
+            "OBJ renamed .kdc",
+            format!("{TRI}f 1 2 3\n").into_bytes(),
+            &["c.kdc", "not a kdtrace compiled scene"],
+        ),
         kdc_case("truncated .kdc", good[..good.len() - 100].to_vec(), &["c.kdc", "truncated"]),
-        kdc_case("corrupted .kdc", { let mut b = good.clone(); let i = b.len() / 2; b[i] ^= 0x10; b }, &["c.kdc", "checksum mismatch"]),
+        kdc_case(
+            "corrupted .kdc",
+            {
+                let mut b = good.clone();
+                let i = b.len() / 2;
+                b[i] ^= 0x10;
+                b
+            },
+            &["c.kdc", "checksum mismatch"],
+        ),
         kdc_case(".kdc of another format version", crafted(&|p| p.version = 99), &["c.kdc", "format version 99"]),
-        kdc_case(".kdc with an absurd triangle count", crafted(&|p| p.header["counts"]["triangles"] = serde_json::json!(1u64 << 50)), &["c.kdc", "counts need"]),
-        kdc_case(".kdc with a node child out of range", crafted(&|p| { let at = craft::section_offset(p, 4); craft::put_u32(p, at + 4, 12345 << 2) }), &["c.kdc", "k-d node 0"]),
-        kdc_case(".kdc with a material id out of range", crafted(&|p| { let at = craft::section_offset(p, 1); craft::put_u32(p, at, 1000) }), &["c.kdc", "material 1000 out of range"]),
+        kdc_case(
+            ".kdc with an absurd triangle count",
+            crafted(&|p| p.header["counts"]["triangles"] = serde_json::json!(1u64 << 50)),
+            &["c.kdc", "counts need"],
+        ),
+        kdc_case(
+            ".kdc with a node child out of range",
+            crafted(&|p| {
+                let at = craft::section_offset(p, 4);
+                craft::put_u32(p, at + 4, 12345 << 2)
+            }),
+            &["c.kdc", "k-d node 0"],
+        ),
+        kdc_case(
+            ".kdc with a material id out of range",
+            crafted(&|p| {
+                let at = craft::section_offset(p, 1);
+                craft::put_u32(p, at, 1000)
+            }),
+            &["c.kdc", "material 1000 out of range"],
+        ),
         // ---- command line ----
-        case("spp 0 on the command line", vec![], vec!["render".into(), repo("scenes/cornell-box.obj"), "--out".into(), "{dir}/x.png".into(), "--spp".into(), "0".into()], &["spp 0"]),
-        case("unsupported output format", vec![], vec!["render".into(), repo("scenes/cornell-box.obj"), "--out".into(), "{dir}/x.bmp".into()], &["x.bmp"]),
-        case("export of a .kdc", vec![("c.kdc", "")], vec!["export".into(), "{dir}/c.kdc".into(), "--out".into(), "{dir}/x.toml".into()], &["c.kdc", "cannot be exported"]),
-        case("export to a non-TOML file", vec![], vec!["export".into(), repo("scenes/cornell-box.obj"), "--out".into(), "{dir}/x.json".into()], &["x.json", ".toml"]),
-        case("compile to a non-.kdc file", vec![], vec!["compile".into(), repo("scenes/cornell-box.obj"), "--out".into(), "{dir}/x.bin".into()], &["x.bin", ".kdc"]),
+        case(
+            "spp 0 on the command line",
+            vec![],
+            vec![
+                "render".into(),
+                repo("scenes/cornell-box.obj"),
+                "--out".into(),
+                "{dir}/x.png".into(),
+                "--spp".into(),
+                "0".into(),
+            ],
+            &["spp 0"],
+        ),
+        case(
+            "unsupported output format",
+            vec![],
+            vec!["render".into(), repo("scenes/cornell-box.obj"), "--out".into(), "{dir}/x.bmp".into()],
+            &["x.bmp"],
+        ),
+        case(
+            "export of a .kdc",
+            vec![("c.kdc", "")],
+            vec!["export".into(), "{dir}/c.kdc".into(), "--out".into(), "{dir}/x.toml".into()],
+            &["c.kdc", "cannot be exported"],
+        ),
+        case(
+            "export to a non-TOML file",
+            vec![],
+            vec!["export".into(), repo("scenes/cornell-box.obj"), "--out".into(), "{dir}/x.json".into()],
+            &["x.json", ".toml"],
+        ),
+        case(
+            "compile to a non-.kdc file",
+            vec![],
+            vec!["compile".into(), repo("scenes/cornell-box.obj"), "--out".into(), "{dir}/x.bin".into()],
+            &["x.bin", ".kdc"],
+        ),
     ]
 }
 

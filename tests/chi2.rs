@@ -160,7 +160,8 @@ fn cosine_hemisphere_follows_cos_theta_over_pi() {
     let cos_pdf = |w: Vec3| (w.z as f64).max(0.0) / PI;
     let good = spherical_chi2(&mut |u1, u2| cosine_hemisphere(u1, u2), &cos_pdf, 1);
     // Wrong: the uniform hemisphere, 1/(2π), which also integrates to 1.
-    let wrong = spherical_chi2(&mut |u1, u2| cosine_hemisphere(u1, u2), &|w: Vec3| if w.z > 0.0 { 0.5 / PI } else { 0.0 }, 1);
+    let wrong =
+        spherical_chi2(&mut |u1, u2| cosine_hemisphere(u1, u2), &|w: Vec3| if w.z > 0.0 { 0.5 / PI } else { 0.0 }, 1);
     assert_pass_and_wrong_rejected("cosine hemisphere", good, wrong);
     // Subtly wrong: tilted by 3% toward +x, (cos θ/π)(1 + 0.03 sin θ cos φ), still normalised.
     let tilted = |w: Vec3| cos_pdf(w) * (1.0 + 0.03 * w.x as f64);
@@ -232,7 +233,8 @@ fn triangle_chi2(weight: &dyn Fn(f64, f64, f64, f64) -> f64, seed: u64) -> Chi2 
     let mut exp = vec![0f64; n * n];
     for j in 0..n {
         for i in 0..n {
-            let (x0, x1, y0, y1) = (i as f64 / n as f64, (i + 1) as f64 / n as f64, j as f64 / n as f64, (j + 1) as f64 / n as f64);
+            let (x0, x1, y0, y1) =
+                (i as f64 / n as f64, (i + 1) as f64 / n as f64, j as f64 / n as f64, (j + 1) as f64 / n as f64);
             exp[j * n + i] = weight(x0, x1, y0, y1) * SAMPLES as f64;
         }
     }
@@ -281,7 +283,7 @@ fn light_selection_follows_power_pmf_of_a_synthetic_table() {
         // Right triangle with legs s and 0.5: area s/4.
         tris.push(triangle([0.0, 0.0, k as f32], [s, 0.0, k as f32], [0.0, 0.5, k as f32]));
         let emission = match k % 4 {
-            0 => Vec3::ZERO,                  // not a light
+            0 => Vec3::ZERO, // not a light
             1 => Vec3::new(5.0, 4.0, 1.0),
             2 => Vec3::new(0.3, 0.3, 0.3),
             _ => Vec3::new(0.01, 20.0, 2.0),
@@ -357,7 +359,8 @@ fn sampler_points_are_uniform_across_pixels() {
 #[test]
 fn light_points_from_a_rescaled_selection_are_uniform_over_a_quad() {
     let tris = [([0.0f32, 0.0], [1.0f32, 0.0], [1.0f32, 1.0]), ([0.0, 0.0], [1.0, 1.0], [0.0, 1.0])];
-    let lights = [Light { triangle: 0, pmf: 0.5, cdf: 0.5, area: 0.5 }, Light { triangle: 1, pmf: 0.5, cdf: 1.0, area: 0.5 }];
+    let lights =
+        [Light { triangle: 0, pmf: 0.5, cdf: 0.5, area: 0.5 }, Light { triangle: 1, pmf: 0.5, cdf: 1.0, area: 0.5 }];
     let mut rng = Pcg64::seed_from_u64(21);
     let pts: Vec<(f32, f32)> = (0..SAMPLES)
         .map(|_| {

@@ -25,15 +25,44 @@ fn stderr(o: &Output) -> String {
 fn renders_the_default_scene_on_both_devices_with_json() {
     for device in ["cpu", "gpu"] {
         let out = tmp(&format!("cornell-{device}.png"));
-        let o = kdtrace(&["render", &repo("scenes/cornell-box.obj"), "--out", out.to_str().unwrap(), "--device", device, "--spp", "4", "--width", "40", "--height", "30", "--json"]);
+        let o = kdtrace(&[
+            "render",
+            &repo("scenes/cornell-box.obj"),
+            "--out",
+            out.to_str().unwrap(),
+            "--device",
+            device,
+            "--spp",
+            "4",
+            "--width",
+            "40",
+            "--height",
+            "30",
+            "--json",
+        ]);
         assert!(o.status.success(), "{device}: {}", stderr(&o));
         let line: serde_json::Value = serde_json::from_slice(&o.stdout).expect("one JSON line");
-        for key in ["device", "adapter", "triangles", "spp", "width", "height", "load_s", "build_s", "prepare_s", "render_s", "samples_per_s"] {
+        for key in [
+            "device",
+            "adapter",
+            "triangles",
+            "spp",
+            "width",
+            "height",
+            "load_s",
+            "build_s",
+            "prepare_s",
+            "render_s",
+            "samples_per_s",
+        ] {
             assert!(line.get(key).is_some(), "{device}: JSON lacks {key}: {line}");
         }
         assert_eq!(line["device"], device);
         assert_eq!(line["triangles"], 32);
-        assert_eq!((line["width"].as_u64(), line["height"].as_u64(), line["spp"].as_u64()), (Some(40), Some(30), Some(4)));
+        assert_eq!(
+            (line["width"].as_u64(), line["height"].as_u64(), line["spp"].as_u64()),
+            (Some(40), Some(30), Some(4))
+        );
         let img = image::open(&out).unwrap();
         assert_eq!((img.width(), img.height()), (40, 30));
         let bright = img.to_rgb8().pixels().filter(|p| p.0.iter().any(|&c| c > 20)).count();
@@ -44,7 +73,20 @@ fn renders_the_default_scene_on_both_devices_with_json() {
 #[test]
 fn writes_linear_exr() {
     let out = tmp("cornell.exr");
-    let o = kdtrace(&["render", &repo("scenes/cornell-box.obj"), "--out", out.to_str().unwrap(), "--spp", "2", "--width", "16", "--height", "16", "--bounces", "0"]);
+    let o = kdtrace(&[
+        "render",
+        &repo("scenes/cornell-box.obj"),
+        "--out",
+        out.to_str().unwrap(),
+        "--spp",
+        "2",
+        "--width",
+        "16",
+        "--height",
+        "16",
+        "--bounces",
+        "0",
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let (w, h, px) = kdtrace::image_io::read_exr(&out).unwrap();
     assert_eq!((w, h, px.len()), (16, 16, 256));
@@ -54,7 +96,17 @@ fn writes_linear_exr() {
 
 #[test]
 fn verify_agrees_and_says_so() {
-    let o = kdtrace(&["verify", &repo("scenes/cornell-box.obj"), "--spp", "4", "--width", "32", "--height", "32", "--json"]);
+    let o = kdtrace(&[
+        "verify",
+        &repo("scenes/cornell-box.obj"),
+        "--spp",
+        "4",
+        "--width",
+        "32",
+        "--height",
+        "32",
+        "--json",
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let line: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(line["agreement"]["pass"], true, "{line}");
@@ -91,11 +143,20 @@ fn bad_input_exits_2_with_the_file_and_line() {
     expect_input_error(&["render", bad_index.to_str().unwrap(), "--out", out], "index.obj");
     let cornell = repo("scenes/cornell-box.obj");
     expect_input_error(&["render", &cornell, "--out", out, "--spp", "0"], "spp");
-    expect_input_error(&["verify", &cornell, "--time-limit", "1", "--spp", "1", "--width", "4", "--height", "4"], "--time-limit does not apply");
+    expect_input_error(
+        &["verify", &cornell, "--time-limit", "1", "--spp", "1", "--width", "4", "--height", "4"],
+        "--time-limit does not apply",
+    );
     expect_input_error(&["render", &cornell, "--out", out, "--width", "0"], "resolution");
     expect_input_error(&["render", &cornell, "--out", out, "--eye", "0,0,0", "--target", "0,0,0"], "eye and target");
-    expect_input_error(&["render", &cornell, "--out", tmp("x.bmp").to_str().unwrap(), "--spp", "1", "--width", "4", "--height", "4"], "x.bmp");
-    expect_input_error(&["render", &cornell, "--out", out, "--device", "gpu", "--adapter", "no-such-adapter", "--spp", "1"], "no-such-adapter");
+    expect_input_error(
+        &["render", &cornell, "--out", tmp("x.bmp").to_str().unwrap(), "--spp", "1", "--width", "4", "--height", "4"],
+        "x.bmp",
+    );
+    expect_input_error(
+        &["render", &cornell, "--out", out, "--device", "gpu", "--adapter", "no-such-adapter", "--spp", "1"],
+        "no-such-adapter",
+    );
     assert!(!Path::new(out).exists(), "a failed render wrote its output");
 }
 
@@ -103,7 +164,19 @@ fn bad_input_exits_2_with_the_file_and_line() {
 fn missing_material_library_renders_grey() {
     let obj = write("nomtl.obj", "mtllib absent.mtl\nv -1 -1 0\nv 1 -1 0\nv 0 1 0\nusemtl whatever\nf 1 2 3\n");
     let out = tmp("nomtl.png");
-    let o = kdtrace(&["render", obj.to_str().unwrap(), "--out", out.to_str().unwrap(), "--spp", "1", "--width", "8", "--height", "8", "--json"]);
+    let o = kdtrace(&[
+        "render",
+        obj.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--spp",
+        "1",
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "--json",
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).contains("material library not found"), "{}", stderr(&o));
 }

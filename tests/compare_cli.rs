@@ -30,7 +30,19 @@ fn compare_reports_all_metrics_as_json_for_exr_and_pfm() {
     let o = kdtrace(&["compare", &r, &t, "--json"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let j: serde_json::Value = serde_json::from_slice(&o.stdout).expect("one JSON line");
-    for key in ["rmse", "relmse", "mae", "flip", "flip_ppd", "mean_ratio", "width", "height", "reference", "test", "skipped_values"] {
+    for key in [
+        "rmse",
+        "relmse",
+        "mae",
+        "flip",
+        "flip_ppd",
+        "mean_ratio",
+        "width",
+        "height",
+        "reference",
+        "test",
+        "skipped_values",
+    ] {
         assert!(j.get(key).is_some(), "JSON lacks {key}: {j}");
     }
     assert_eq!((j["width"].as_u64(), j["height"].as_u64()), (Some(16), Some(8)));

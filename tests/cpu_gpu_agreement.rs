@@ -37,8 +37,21 @@ fn repo(rel: &str) -> PathBuf {
 #[test]
 fn our_cornell_box_agrees_at_64x64_16spp() {
     let c = load(&repo("scenes/cornell-box.obj"), BuildSettings::default()).unwrap().compiled;
-    let camera = Camera { eye: Vec3::new(0.278, 0.273, 0.8), target: Vec3::new(0.278, 0.273, 0.0), up: Vec3::Y, fov_deg: 39.3076 };
-    let s = RenderSettings { width: 64, height: 64, spp: 16, max_bounces: 6, seed: 1, rr_start: 5, ..RenderSettings::with_camera(camera) };
+    let camera = Camera {
+        eye: Vec3::new(0.278, 0.273, 0.8),
+        target: Vec3::new(0.278, 0.273, 0.0),
+        up: Vec3::Y,
+        fov_deg: 39.3076,
+    };
+    let s = RenderSettings {
+        width: 64,
+        height: 64,
+        spp: 16,
+        max_bounces: 6,
+        seed: 1,
+        rr_start: 5,
+        ..RenderSettings::with_camera(camera)
+    };
     agree_on(&c, &s, "scenes/cornell-box.obj");
 }
 
@@ -48,7 +61,15 @@ fn cornell_box_sphere_agrees() {
     assert!(path.exists(), "{} is missing", path.display());
     let c = load(&path, BuildSettings::default()).unwrap().compiled;
     let camera = Camera { eye: Vec3::new(0.0, 1.0, 3.4), target: Vec3::new(0.0, 1.0, 0.0), up: Vec3::Y, fov_deg: 39.3 };
-    let s = RenderSettings { width: 48, height: 48, spp: 8, max_bounces: 4, seed: 9, rr_start: 3, ..RenderSettings::with_camera(camera) };
+    let s = RenderSettings {
+        width: 48,
+        height: 48,
+        spp: 8,
+        max_bounces: 4,
+        seed: 9,
+        rr_start: 3,
+        ..RenderSettings::with_camera(camera)
+    };
     agree_on(&c, &s, "CornellBox-Sphere");
 }
 
@@ -60,7 +81,16 @@ fn water_box_agrees_with_many_samples_per_pixel() {
     let path = repo("../shared/scenes/CornellBox-Water/CornellBox-Water.obj");
     assert!(path.exists(), "{} is missing", path.display());
     let c = load(&path, BuildSettings::default()).unwrap().compiled;
-    let camera = Camera { eye: Vec3::new(0.0, 1.0, 3.4), target: Vec3::new(0.0, 1.0, 0.0), up: Vec3::Y, fov_deg: 39.3076 };
-    let s = RenderSettings { width: 64, height: 64, spp: 16, max_bounces: 6, seed: 0, rr_start: 5, ..RenderSettings::with_camera(camera) };
+    let camera =
+        Camera { eye: Vec3::new(0.0, 1.0, 3.4), target: Vec3::new(0.0, 1.0, 0.0), up: Vec3::Y, fov_deg: 39.3076 };
+    let s = RenderSettings {
+        width: 64,
+        height: 64,
+        spp: 16,
+        max_bounces: 6,
+        seed: 0,
+        rr_start: 5,
+        ..RenderSettings::with_camera(camera)
+    };
     agree_on(&c, &s, "CornellBox-Water");
 }

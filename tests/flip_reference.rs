@@ -17,7 +17,8 @@ fn png(path: &Path) -> (u32, u32, Vec<u8>) {
 }
 
 fn check_pair(name: &str) {
-    let expected: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(data().join("expected.json")).unwrap()).unwrap();
+    let expected: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(data().join("expected.json")).unwrap()).unwrap();
     let pair = &expected["pairs"][name];
     let ppd = expected["ppd"].as_f64().unwrap() as f32;
     let (w, h, r) = png(&data().join(pair["reference"].as_str().unwrap()));

@@ -7,7 +7,15 @@ use kdtrace::{compile, cpu, gpu, procedural};
 use shared::glam::Vec3;
 
 fn settings(size: u32, spp: u32, bounces: u32, camera: Camera) -> RenderSettings {
-    RenderSettings { width: size, height: size, spp, max_bounces: bounces, seed: 7, rr_start: 3, ..RenderSettings::with_camera(camera) }
+    RenderSettings {
+        width: size,
+        height: size,
+        spp,
+        max_bounces: bounces,
+        seed: 7,
+        rr_start: 3,
+        ..RenderSettings::with_camera(camera)
+    }
 }
 
 fn inside_camera() -> Camera {
@@ -17,7 +25,8 @@ fn inside_camera() -> Camera {
 fn image_mean(r: &Rendered) -> (f64, f64, f64) {
     let m = r.mean();
     let n = m.len() as f64;
-    let (min, max) = m.iter().flat_map(|p| p.iter()).fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v as f64), b.max(v as f64)));
+    let (min, max) =
+        m.iter().flat_map(|p| p.iter()).fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v as f64), b.max(v as f64)));
     (m.iter().map(|p| (p[0] + p[1] + p[2]) as f64 / 3.0).sum::<f64>() / n, min, max)
 }
 

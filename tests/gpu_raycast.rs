@@ -45,7 +45,11 @@ fn surface_rays(c: &Compiled, n: usize, seed: u64) -> Vec<RayQuery> {
             let stack = if k % 4 < 2 { 0 } else { RAY_SHORT_STACK };
             if k % 2 == 0 {
                 let d = loop {
-                    let v = Vec3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
+                    let v = Vec3::new(
+                        rng.random_range(-1.0..1.0),
+                        rng.random_range(-1.0..1.0),
+                        rng.random_range(-1.0..1.0),
+                    );
                     if v.length() > 1e-3 && v.length() <= 1.0 {
                         break v.normalize();
                     }
@@ -72,7 +76,9 @@ fn cast_on_both(c: &Compiled, rays: &[RayQuery], what: &str) {
     let mut mismatches = Vec::new();
     for (i, (a, b)) in cpu.iter().zip(&gpu).enumerate() {
         hits += (a.triangle != u32::MAX) as usize;
-        if (a.t.to_bits(), a.triangle, a.nodes, a.tests, a.restarts) != (b.t.to_bits(), b.triangle, b.nodes, b.tests, b.restarts) {
+        if (a.t.to_bits(), a.triangle, a.nodes, a.tests, a.restarts)
+            != (b.t.to_bits(), b.triangle, b.nodes, b.tests, b.restarts)
+        {
             mismatches.push(i);
         }
     }

@@ -28,10 +28,16 @@ fn assert_same(a: &Compiled, b: &Compiled) {
     assert_eq!(a.scene.material_names, b.scene.material_names);
     assert_eq!(bits(bytemuck::cast_slice(&a.scene.lights)), bits(bytemuck::cast_slice(&b.scene.lights)));
     assert_eq!(a.lights, b.lights);
-    assert_eq!((a.scene.bounds_min, a.scene.bounds_max, a.scene.dropped_degenerate), (b.scene.bounds_min, b.scene.bounds_max, b.scene.dropped_degenerate));
+    assert_eq!(
+        (a.scene.bounds_min, a.scene.bounds_max, a.scene.dropped_degenerate),
+        (b.scene.bounds_min, b.scene.bounds_max, b.scene.dropped_degenerate)
+    );
     assert_eq!(a.tree.nodes, b.tree.nodes);
     assert_eq!(a.tree.indices, b.tree.indices);
-    assert_eq!((a.tree.bounds_min, a.tree.bounds_max, a.tree.depth), (b.tree.bounds_min, b.tree.bounds_max, b.tree.depth));
+    assert_eq!(
+        (a.tree.bounds_min, a.tree.bounds_max, a.tree.depth),
+        (b.tree.bounds_min, b.tree.bounds_max, b.tree.depth)
+    );
     assert_eq!(a.origin, b.origin);
 }
 
@@ -52,7 +58,11 @@ fn a_far_scene_keeps_its_local_frame_through_a_kdc() {
     let loaded = kdtrace::load(&toml, BuildSettings::default()).unwrap();
     let origin = loaded.compiled.origin;
     assert!(origin.min_element() > 99_999.0, "not moved into a local frame: origin {origin}");
-    assert!(loaded.compiled.tree.bounds_max.abs().max_element() < 1.0, "local bounds {:?}", loaded.compiled.tree.bounds_max);
+    assert!(
+        loaded.compiled.tree.bounds_max.abs().max_element() < 1.0,
+        "local bounds {:?}",
+        loaded.compiled.tree.bounds_max
+    );
     let path = tmp("far.kdc");
     kdc::write(&path, &loaded.compiled, &BuildSettings::default(), &loaded.settings).unwrap();
     let back = kdc::read(&path).unwrap();
@@ -75,7 +85,11 @@ fn cornell_bytes() -> (Vec<u8>, kdtrace::Loaded) {
 
 #[test]
 fn written_scenes_read_back_bit_for_bit() {
-    for rel in ["scenes/cornell-box.toml", "../shared/scenes/CornellBox-Sphere/CornellBox-Sphere.obj", "../shared/scenes/bunny-npm/bunny.obj"] {
+    for rel in [
+        "scenes/cornell-box.toml",
+        "../shared/scenes/CornellBox-Sphere/CornellBox-Sphere.obj",
+        "../shared/scenes/bunny-npm/bunny.obj",
+    ] {
         let loaded = kdtrace::load(&repo(rel), BuildSettings::default()).unwrap();
         let path = tmp(&format!("{}.kdc", Path::new(rel).file_stem().unwrap().to_string_lossy()));
         let build = BuildSettings { leaf_size: 3, ..BuildSettings::default() };
@@ -96,12 +110,30 @@ fn written_scenes_read_back_bit_for_bit() {
 fn a_kdc_renders_the_image_its_source_renders() {
     let out = tmp("cornell-kdc.kdc");
     let bin = env!("CARGO_BIN_EXE_kdtrace");
-    let o = Command::new(bin).args(["compile", repo("scenes/cornell-box.toml").to_str().unwrap(), "--out", out.to_str().unwrap()]).output().unwrap();
+    let o = Command::new(bin)
+        .args(["compile", repo("scenes/cornell-box.toml").to_str().unwrap(), "--out", out.to_str().unwrap()])
+        .output()
+        .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let mut images = Vec::new();
     for src in [repo("scenes/cornell-box.toml"), out.clone()] {
         let png = tmp(&format!("{}.png", src.extension().unwrap().to_string_lossy()));
-        let o = Command::new(bin).args(["render", src.to_str().unwrap(), "--out", png.to_str().unwrap(), "--spp", "2", "--width", "24", "--height", "16", "--json"]).output().unwrap();
+        let o = Command::new(bin)
+            .args([
+                "render",
+                src.to_str().unwrap(),
+                "--out",
+                png.to_str().unwrap(),
+                "--spp",
+                "2",
+                "--width",
+                "24",
+                "--height",
+                "16",
+                "--json",
+            ])
+            .output()
+            .unwrap();
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         images.push(image::open(&png).unwrap().to_rgb8().into_raw());
     }
@@ -114,7 +146,8 @@ fn every_truncation_is_refused() {
     let (bytes, _) = cornell_bytes();
     let path = Path::new("cut.kdc");
     for len in 0..bytes.len() {
-        let e = kdc::decode(path, &bytes[..len]).err().unwrap_or_else(|| panic!("a file cut to {len} bytes was accepted"));
+        let e =
+            kdc::decode(path, &bytes[..len]).err().unwrap_or_else(|| panic!("a file cut to {len} bytes was accepted"));
         assert!(format!("{e:#}").contains("cut.kdc"), "{e:#}");
     }
     let mut longer = bytes.clone();
@@ -130,7 +163,9 @@ fn every_single_bit_flip_is_refused() {
         for bit in [0, 5] {
             let mut b = bytes.clone();
             b[i] ^= 1 << bit;
-            let e = kdc::decode(Path::new("flip.kdc"), &b).err().unwrap_or_else(|| panic!("flipping bit {bit} of byte {i} went unnoticed"));
+            let e = kdc::decode(Path::new("flip.kdc"), &b)
+                .err()
+                .unwrap_or_else(|| panic!("flipping bit {bit} of byte {i} went unnoticed"));
             assert!(format!("{e:#}").contains("flip.kdc"));
         }
     }
@@ -157,19 +192,64 @@ fn crafted_files_are_refused_behind_a_valid_checksum() {
     let ax = c.tree.nodes[first_interior].axis();
     let cases: Vec<(&str, Edit)> = vec![
         ("children", Box::new(move |p| craft::put_u32(p, node(p, first_interior) + 4, ax | (9999 << 2)))),
-        ("children", Box::new(move |p| craft::put_u32(p, node(p, first_interior) + 4, ax | ((first_interior as u32 + 1) << 2)))),
+        (
+            "children",
+            Box::new(move |p| craft::put_u32(p, node(p, first_interior) + 4, ax | ((first_interior as u32 + 1) << 2))),
+        ),
         ("split", Box::new(move |p| craft::put_f32(p, node(p, first_interior), f32::NAN))),
         ("split", Box::new(move |p| craft::put_f32(p, node(p, first_interior), f32::INFINITY))),
         ("leaf", Box::new(move |p| craft::put_u32(p, node(p, first_leaf), u32::MAX - 1))),
         ("leaf", Box::new(move |p| craft::put_u32(p, node(p, first_leaf) + 4, 3 | (1 << 29)))),
-        ("triangle index", Box::new(|p| { let at = craft::section_offset(p, 5); craft::put_u32(p, at, 1 << 20) })),
-        ("material", Box::new(|p| { let at = craft::section_offset(p, 1); craft::put_u32(p, at, 77) })),
-        ("light", Box::new(|p| { let at = craft::section_offset(p, 1); craft::put_u32(p, at + 4, 5) })),
-        ("pointing back", Box::new(|p| { let at = craft::section_offset(p, 3); craft::put_u32(p, at, 1 << 30) })),
-        ("cdf", Box::new(|p| { let at = craft::section_offset(p, 3); craft::put_f32(p, at + 8, 2.0) })),
+        (
+            "triangle index",
+            Box::new(|p| {
+                let at = craft::section_offset(p, 5);
+                craft::put_u32(p, at, 1 << 20)
+            }),
+        ),
+        (
+            "material",
+            Box::new(|p| {
+                let at = craft::section_offset(p, 1);
+                craft::put_u32(p, at, 77)
+            }),
+        ),
+        (
+            "light",
+            Box::new(|p| {
+                let at = craft::section_offset(p, 1);
+                craft::put_u32(p, at + 4, 5)
+            }),
+        ),
+        (
+            "pointing back",
+            Box::new(|p| {
+                let at = craft::section_offset(p, 3);
+                craft::put_u32(p, at, 1 << 30)
+            }),
+        ),
+        (
+            "cdf",
+            Box::new(|p| {
+                let at = craft::section_offset(p, 3);
+                craft::put_f32(p, at + 8, 2.0)
+            }),
+        ),
         ("vertex", Box::new(|p| craft::put_f32(p, 4, f32::INFINITY))),
-        ("kind", Box::new(|p| { let at = craft::section_offset(p, 2); craft::put_u32(p, at, 7) })),
-        ("colours", Box::new(|p| { let at = craft::section_offset(p, 2); craft::put_f32(p, at + 16, -1.0) })),
+        (
+            "kind",
+            Box::new(|p| {
+                let at = craft::section_offset(p, 2);
+                craft::put_u32(p, at, 7)
+            }),
+        ),
+        (
+            "colours",
+            Box::new(|p| {
+                let at = craft::section_offset(p, 2);
+                craft::put_f32(p, at + 16, -1.0)
+            }),
+        ),
         ("counts need", Box::new(|p| p.header["counts"]["triangles"] = serde_json::json!(1u64 << 40))),
         ("overflows", Box::new(|p| p.header["counts"]["indices"] = serde_json::json!(u64::MAX))),
         ("counts need", Box::new(|p| p.header["counts"]["nodes"] = serde_json::json!(0))),

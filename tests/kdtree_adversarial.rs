@@ -10,8 +10,8 @@ use rand_pcg::Pcg64;
 use rayon::prelude::*;
 use shared::glam::Vec3;
 use shared::kdtree::{intersect, intersect_brute_force, test_leaf_blocks, test_leaf_each, Hit};
-use shared::triangle::RayShear;
 use shared::layout::{KdNode, Triangle, BLOCK_WIDTH, KD_MAX_DEPTH};
+use shared::triangle::RayShear;
 use shared::vecmath::xyz;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -45,7 +45,14 @@ fn build_checked(what: &str, tris: &[Triangle]) -> KdTree {
         assert!(tree.depth <= KD_MAX_DEPTH, "{what}: depth {}", tree.depth);
         assert!(is_aligned(&tree), "{what} ({builder:?}): the index list is not laid out in blocks");
         let st = stats(&tree, tris.len(), &settings);
-        eprintln!("{what} ({builder:?}): {} triangles, {} nodes, depth {}, {} refs, SAH cost {:.1}, {secs:.3} s", tris.len(), st.nodes, st.max_depth, st.total_refs, st.sah_cost);
+        eprintln!(
+            "{what} ({builder:?}): {} triangles, {} nodes, depth {}, {} refs, SAH cost {:.1}, {secs:.3} s",
+            tris.len(),
+            st.nodes,
+            st.max_depth,
+            st.total_refs,
+            st.sah_cost
+        );
         assert!(secs < 30.0, "{what}: build took {secs} s");
         if builder == Builder::Sah {
             sah = Some(tree);
@@ -58,7 +65,13 @@ fn build_checked(what: &str, tris: &[Triangle]) -> KdTree {
 /// exactly the brute-force hit, through both traversals.
 fn traversal_matches_brute_force(what: &str, tris: &[Triangle], rays: usize) {
     let n = tris.len();
-    let scene = kdtrace::scene::Scene::new(tris.to_vec(), vec![0; n], vec![kdtrace::scene::diffuse(Vec3::splat(0.5), Vec3::ZERO)], vec!["m".into()]).unwrap();
+    let scene = kdtrace::scene::Scene::new(
+        tris.to_vec(),
+        vec![0; n],
+        vec![kdtrace::scene::diffuse(Vec3::splat(0.5), Vec3::ZERO)],
+        vec!["m".into()],
+    )
+    .unwrap();
     let c = compile(scene, BuildSettings::default());
     let params = c.bounds_params();
     let view = c.view(&params);
@@ -70,13 +83,27 @@ fn traversal_matches_brute_force(what: &str, tris: &[Triangle], rays: usize) {
         .into_par_iter()
         .map(|i| {
             let mut rng = Pcg64::seed_from_u64(i as u64);
-            let o = lo + ext * Vec3::new(rng.random_range(-0.5..1.5), rng.random_range(-0.5..1.5), rng.random_range(-0.5..1.5));
+            let o = lo
+                + ext
+                    * Vec3::new(rng.random_range(-0.5..1.5), rng.random_range(-0.5..1.5), rng.random_range(-0.5..1.5));
             let t = &c.scene.triangles[rng.random_range(0..c.scene.triangles.len())];
-            let d = if i % 2 == 0 { (xyz(t.v0) + xyz(t.v1) + xyz(t.v2)) / 3.0 - o } else { Vec3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)) };
+            let d = if i % 2 == 0 {
+                (xyz(t.v0) + xyz(t.v1) + xyz(t.v2)) / 3.0 - o
+            } else {
+                Vec3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0))
+            };
             let b = intersect_brute_force(&view, o, d, f32::MAX);
             for traversal in [shared::layout::TRAVERSAL_FULL_STACK, shared::layout::TRAVERSAL_SHORT_STACK] {
                 let a = shared::raycast::closest(&view, traversal, o, d, f32::MAX).hit;
-                assert_eq!(a.t.to_bits(), b.t.to_bits(), "{what}: o={o:?} d={d:?}: tree {} (tri {}), brute force {} (tri {})", a.t, a.triangle, b.t, b.triangle);
+                assert_eq!(
+                    a.t.to_bits(),
+                    b.t.to_bits(),
+                    "{what}: o={o:?} d={d:?}: tree {} (tri {}), brute force {} (tri {})",
+                    a.t,
+                    a.triangle,
+                    b.t,
+                    b.triangle
+                );
             }
             b.is_hit() as usize
         })
@@ -171,7 +198,15 @@ fn check_exact(c: &Compiled, rays: &[(Vec3, Vec3)], what: &str) -> usize {
         .map(|&(o, d)| {
             let a = intersect(&scene, o, d, f32::MAX);
             let b = intersect_brute_force(&scene, o, d, f32::MAX);
-            assert_eq!(a.t.to_bits(), b.t.to_bits(), "{what}: o={o:?} d={d:?}: tree {} (tri {}), brute force {} (tri {})", a.t, a.triangle, b.t, b.triangle);
+            assert_eq!(
+                a.t.to_bits(),
+                b.t.to_bits(),
+                "{what}: o={o:?} d={d:?}: tree {} (tri {}), brute force {} (tri {})",
+                a.t,
+                a.triangle,
+                b.t,
+                b.triangle
+            );
             b.is_hit() as usize
         })
         .sum()
@@ -185,7 +220,8 @@ fn rays_in_split_planes_and_from_triangle_edges_match_brute_force() {
     let c = compile(scene, BuildSettings::default());
     let (lo, hi) = (c.tree.bounds_min, c.tree.bounds_max);
     let mut rng = Pcg64::seed_from_u64(11);
-    let planes: Vec<(usize, f32)> = c.tree.nodes.iter().filter(|n| !n.is_leaf()).map(|n| (n.axis() as usize, n.split())).collect();
+    let planes: Vec<(usize, f32)> =
+        c.tree.nodes.iter().filter(|n| !n.is_leaf()).map(|n| (n.axis() as usize, n.split())).collect();
     let mut rays = Vec::new();
     for _ in 0..20_000 {
         let (k, s) = planes[rng.random_range(0..planes.len())];
@@ -210,7 +246,9 @@ fn rays_in_split_planes_and_from_triangle_edges_match_brute_force() {
         rays.push((o, d));
         // And aimed at a vertex from outside.
         let target = xyz(t.v0);
-        let from = target + Vec3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)) * (hi - lo).length();
+        let from = target
+            + Vec3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0))
+                * (hi - lo).length();
         rays.push((from, target - from));
     }
     let edge_hits = check_exact(&c, &rays, "edge or vertex");
@@ -246,7 +284,11 @@ fn each_leaf_cost_model_builds_the_tree_cheapest_under_it() {
     let tree_gpu = compile(scene, gpu).tree;
     let cost = |t: &KdTree, s: &BuildSettings| stats(t, n, s).sah_cost;
     let (cc, cg, gc, gg) = (cost(&tree_cpu, &cpu), cost(&tree_gpu, &cpu), cost(&tree_cpu, &gpu), cost(&tree_gpu, &gpu));
-    eprintln!("bunny: CPU model {cc:.1} (CPU tree) vs {cg:.1} (GPU tree); GPU model {gc:.1} vs {gg:.1}; nodes {} vs {}", tree_cpu.nodes.len(), tree_gpu.nodes.len());
+    eprintln!(
+        "bunny: CPU model {cc:.1} (CPU tree) vs {cg:.1} (GPU tree); GPU model {gc:.1} vs {gg:.1}; nodes {} vs {}",
+        tree_cpu.nodes.len(),
+        tree_gpu.nodes.len()
+    );
     assert!(cc < 0.9 * cg, "the CPU tree must be clearly cheaper under the CPU model");
     assert!(gg < 0.9 * gc, "the GPU tree must be clearly cheaper under the GPU model");
 }
@@ -272,13 +314,21 @@ fn unaligned_leaves_are_laid_out_anew_and_stay_exact() {
     assert!(!is_aligned(&tree), "packing must break the layout, or this test checks nothing");
     let c = Compiled::new(scene, tree);
     assert!(is_aligned(&c.tree));
-    let after: Vec<Vec<u32>> = c.tree.nodes.iter().filter(|n| n.is_leaf()).map(|n| c.tree.indices[n.first_index() as usize..(n.first_index() + n.count()) as usize].to_vec()).collect();
+    let after: Vec<Vec<u32>> = c
+        .tree
+        .nodes
+        .iter()
+        .filter(|n| n.is_leaf())
+        .map(|n| c.tree.indices[n.first_index() as usize..(n.first_index() + n.count()) as usize].to_vec())
+        .collect();
     assert_eq!(after, runs, "laying out must keep every leaf's triangles in order");
     let mut rng = Pcg64::seed_from_u64(5);
     let (lo, hi) = (c.tree.bounds_min, c.tree.bounds_max);
     let rays: Vec<(Vec3, Vec3)> = (0..20_000)
         .map(|_| {
-            let o = lo + (hi - lo) * Vec3::new(rng.random_range(-0.2..1.2), rng.random_range(-0.2..1.2), rng.random_range(-0.2..1.2));
+            let o = lo
+                + (hi - lo)
+                    * Vec3::new(rng.random_range(-0.2..1.2), rng.random_range(-0.2..1.2), rng.random_range(-0.2..1.2));
             let t = &c.scene.triangles[rng.random_range(0..c.scene.triangles.len())];
             (o, (xyz(t.v0) + xyz(t.v1) + xyz(t.v2)) / 3.0 - o)
         })
@@ -297,12 +347,17 @@ fn block_leaf_test_equals_the_one_by_one_test_on_every_leaf() {
     let params = c.bounds_params();
     let view = c.view(&params);
     let leaves: Vec<KdNode> = c.tree.nodes.iter().copied().filter(|n| n.is_leaf()).collect();
-    assert!(leaves.iter().any(|n| n.count() == 0 && n.first_index() % BLOCK_WIDTH != 0), "no unaligned empty leaf: the empty case goes untested");
+    assert!(
+        leaves.iter().any(|n| n.count() == 0 && n.first_index() % BLOCK_WIDTH != 0),
+        "no unaligned empty leaf: the empty case goes untested"
+    );
     let (lo, hi) = (c.tree.bounds_min, c.tree.bounds_max);
     let mut rng = Pcg64::seed_from_u64(17);
     let mut hits = 0;
     for _ in 0..300 {
-        let o = lo + (hi - lo) * Vec3::new(rng.random_range(-0.2..1.2), rng.random_range(-0.2..1.2), rng.random_range(-0.2..1.2));
+        let o = lo
+            + (hi - lo)
+                * Vec3::new(rng.random_range(-0.2..1.2), rng.random_range(-0.2..1.2), rng.random_range(-0.2..1.2));
         let t = &c.scene.triangles[rng.random_range(0..c.scene.triangles.len())];
         let d = (xyz(t.v0) + xyz(t.v1) + xyz(t.v2)) / 3.0 - o;
         let shear = RayShear::new(o, d);
@@ -313,7 +368,11 @@ fn block_leaf_test_equals_the_one_by_one_test_on_every_leaf() {
                 let (mut ta, mut tb) = (0, 0);
                 let da = test_leaf_blocks(&view, &shear, n, &mut a, &mut ta, any_hit);
                 let db = test_leaf_each(&view, &shear, n, &mut b, &mut tb, any_hit);
-                assert_eq!((da, ta, a.triangle, a.t.to_bits(), a.u.to_bits()), (db, tb, b.triangle, b.t.to_bits(), b.u.to_bits()), "leaf {n:?}, any hit {any_hit}, o={o:?} d={d:?}");
+                assert_eq!(
+                    (da, ta, a.triangle, a.t.to_bits(), a.u.to_bits()),
+                    (db, tb, b.triangle, b.t.to_bits(), b.u.to_bits()),
+                    "leaf {n:?}, any hit {any_hit}, o={o:?} d={d:?}"
+                );
                 hits += a.is_hit() as usize;
             }
         }

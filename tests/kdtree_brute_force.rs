@@ -31,11 +31,21 @@ fn check_rays(c: &Compiled, rays: &[(Vec3, Vec3)]) -> (usize, usize) {
         .map(|&(o, d)| {
             let tree = intersect(&scene, o, d, f32::MAX);
             let brute = intersect_brute_force(&scene, o, d, f32::MAX);
-            assert_eq!(tree.t.to_bits(), brute.t.to_bits(), "ray o={o:?} d={d:?}: tree t={} (tri {}) brute t={} (tri {})", tree.t, tree.triangle, brute.t, brute.triangle);
+            assert_eq!(
+                tree.t.to_bits(),
+                brute.t.to_bits(),
+                "ray o={o:?} d={d:?}: tree t={} (tri {}) brute t={} (tri {})",
+                tree.t,
+                tree.triangle,
+                brute.t,
+                brute.triangle
+            );
             if tree.triangle != brute.triangle {
                 // A tie: the tree's triangle must be hit at exactly the same distance.
                 let shear = RayShear::new(o, shared::kdtree::flush_denormals(d));
-                let h = shear.intersect(&scene.triangles[tree.triangle as usize], 0.0, f32::MAX).expect("tree returned a triangle the ray misses");
+                let h = shear
+                    .intersect(&scene.triangles[tree.triangle as usize], 0.0, f32::MAX)
+                    .expect("tree returned a triangle the ray misses");
                 assert_eq!(h.t.to_bits(), brute.t.to_bits(), "ray o={o:?} d={d:?}: different triangles at different t");
             }
             assert_eq!(occluded(&scene, o, d, f32::MAX), brute.is_hit(), "occlusion disagrees for o={o:?} d={d:?}");
@@ -65,7 +75,14 @@ fn random_rays(c: &Compiled, n: usize, seed: u64) -> Vec<(Vec3, Vec3)> {
     (0..n)
         .map(|i| {
             if i % 2 == 0 {
-                let o = center + (hi - lo) * 0.6 * Vec3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
+                let o = center
+                    + (hi - lo)
+                        * 0.6
+                        * Vec3::new(
+                            rng.random_range(-1.0..1.0),
+                            rng.random_range(-1.0..1.0),
+                            rng.random_range(-1.0..1.0),
+                        );
                 (o, random_unit(&mut rng))
             } else {
                 let t = &c.scene.triangles[rng.random_range(0..c.scene.triangles.len())];
@@ -85,7 +102,12 @@ fn mesh_case(rel: &str, seed: u64) {
     validate(&c.tree, &c.scene.triangles).unwrap();
     let (rays, hits) = check_rays(&c, &random_rays(&c, 100_000, seed));
     assert!(hits > rays / 3, "{rel}: only {hits} of {rays} rays hit: the test would prove little");
-    eprintln!("{rel}: {} triangles, {} nodes, depth {}, {rays} rays, {hits} hits, all equal to brute force", c.scene.triangles.len(), c.tree.nodes.len(), c.tree.depth);
+    eprintln!(
+        "{rel}: {} triangles, {} nodes, depth {}, {rays} rays, {hits} hits, all equal to brute force",
+        c.scene.triangles.len(),
+        c.tree.nodes.len(),
+        c.tree.depth
+    );
 }
 
 #[test]
@@ -113,13 +135,21 @@ fn staircase_grid_line_rays_match_brute_force() {
     validate(&c.tree, &c.scene.triangles).unwrap();
     let mut rays = Vec::new();
     let axes = [Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z];
-    let diagonals = [Vec3::new(1.0, 1.0, 0.0), Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 1.0), Vec3::new(-1.0, 0.0, 1.0), Vec3::new(1.0, -1.0, -1.0)];
+    let diagonals = [
+        Vec3::new(1.0, 1.0, 0.0),
+        Vec3::new(-1.0, -1.0, 0.0),
+        Vec3::new(1.0, 1.0, 1.0),
+        Vec3::new(-1.0, 0.0, 1.0),
+        Vec3::new(1.0, -1.0, -1.0),
+    ];
     let n = steps as i32 + 2;
     for x in -1..=n {
         for y in -1..=n {
             for z in -1..=(width as i32 + 1) {
                 let base = Vec3::new(x as f32, y as f32, z as f32);
-                for o in [base, base + Vec3::new(0.5, 0.0, 0.0), base + Vec3::new(0.0, 0.5, 0.5), base + Vec3::splat(0.5)] {
+                for o in
+                    [base, base + Vec3::new(0.5, 0.0, 0.0), base + Vec3::new(0.0, 0.5, 0.5), base + Vec3::splat(0.5)]
+                {
                     for d in axes.iter().chain(&diagonals) {
                         rays.push((o, *d));
                     }
@@ -129,7 +159,10 @@ fn staircase_grid_line_rays_match_brute_force() {
     }
     let (count, hits) = check_rays(&c, &rays);
     assert!(hits > count / 4, "only {hits} of {count} grid rays hit");
-    eprintln!("staircase: {} triangles, {count} grid-line rays, {hits} hits, all equal to brute force", c.scene.triangles.len());
+    eprintln!(
+        "staircase: {} triangles, {count} grid-line rays, {hits} hits, all equal to brute force",
+        c.scene.triangles.len()
+    );
 }
 
 #[test]

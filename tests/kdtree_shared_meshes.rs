@@ -41,7 +41,15 @@ fn every_shared_mesh_builds_a_valid_tree() {
         let st = stats(&tree, scene.triangles.len(), &settings);
         assert!(st.max_depth <= KD_MAX_DEPTH.min(settings.depth_limit(scene.triangles.len())));
         assert!(st.total_refs as f64 <= settings.max_refs_factor as f64 * scene.triangles.len() as f64);
-        eprintln!("{}: {} triangles, {} nodes, depth {}, {:.2} refs/leaf, SAH cost {:.1}", path.display(), st.triangles, st.nodes, st.max_depth, st.mean_leaf_refs, st.sah_cost);
+        eprintln!(
+            "{}: {} triangles, {} nodes, depth {}, {:.2} refs/leaf, SAH cost {:.1}",
+            path.display(),
+            st.triangles,
+            st.nodes,
+            st.max_depth,
+            st.mean_leaf_refs,
+            st.sah_cost
+        );
     }
 }
 
@@ -49,7 +57,11 @@ fn every_shared_mesh_builds_a_valid_tree() {
 fn the_tree_does_not_depend_on_the_thread_count() {
     let scene = load_obj(&shared_scenes().join("bunny-stanford-bun_zipper/bun_zipper.obj")).unwrap();
     let on = |threads: usize| {
-        rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(|| build(&scene.triangles, scene.bounds_min, scene.bounds_max, BuildSettings::default()))
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| build(&scene.triangles, scene.bounds_min, scene.bounds_max, BuildSettings::default()))
     };
     let (one, three) = (on(1), on(3));
     assert!(one.nodes.len() > 10_000);

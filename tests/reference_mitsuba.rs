@@ -13,11 +13,11 @@
 //! outcome is deterministic. Besides, the mean over the image must be within 1% of Mitsuba's.
 //! Both checks are shown to fail on a wrong reference (mirrored, or 2% brighter).
 use kdtrace::camera::Camera;
+use kdtrace::cpu;
 use kdtrace::image_io::read_exr;
 use kdtrace::kdbuild::BuildSettings;
 use kdtrace::metrics::{pixel_test, pointwise, LinearImage, PixelStats, PixelTest};
 use kdtrace::render::RenderSettings;
-use kdtrace::cpu;
 use shared::glam::Vec3;
 use std::path::PathBuf;
 
@@ -38,11 +38,24 @@ fn read(name: &str) -> LinearImage {
 /// Mean and unbiased variance over seeds of kdtrace's image, per pixel channel.
 fn kdtrace_seed_statistics() -> (LinearImage, LinearImage) {
     let loaded = kdtrace::load(&root().join("scenes/cornell-box.obj"), BuildSettings::default()).unwrap();
-    let camera = Camera { eye: Vec3::new(0.278, 0.273, 0.8), target: Vec3::new(0.278, 0.273, 0.0), up: Vec3::Y, fov_deg: 39.3076 };
+    let camera = Camera {
+        eye: Vec3::new(0.278, 0.273, 0.8),
+        target: Vec3::new(0.278, 0.273, 0.0),
+        up: Vec3::Y,
+        fov_deg: 39.3076,
+    };
     let n = (SIZE * SIZE) as usize;
     let (mut s1, mut s2) = (vec![[0f64; 3]; n], vec![[0f64; 3]; n]);
     for seed in 1..=SEEDS {
-        let s = RenderSettings { width: SIZE, height: SIZE, spp: SPP, max_bounces: 6, seed, rr_start: 5, ..RenderSettings::with_camera(camera) };
+        let s = RenderSettings {
+            width: SIZE,
+            height: SIZE,
+            spp: SPP,
+            max_bounces: 6,
+            seed,
+            rr_start: 5,
+            ..RenderSettings::with_camera(camera)
+        };
         let r = cpu::render(&loaded.compiled, &s, &|_, _| {}).unwrap();
         assert_eq!(r.zeroed_samples(), 0);
         for (i, p) in r.mean().iter().enumerate() {
@@ -54,7 +67,11 @@ fn kdtrace_seed_statistics() -> (LinearImage, LinearImage) {
     }
     let k = SEEDS as f64;
     let mean = s1.iter().map(|p| p.map(|v| (v / k) as f32)).collect();
-    let var = s1.iter().zip(&s2).map(|(a, b)| [0, 1, 2].map(|c| ((b[c] - a[c] * a[c] / k) / (k - 1.0)).max(0.0) as f32)).collect();
+    let var = s1
+        .iter()
+        .zip(&s2)
+        .map(|(a, b)| [0, 1, 2].map(|c| ((b[c] - a[c] * a[c] / k) / (k - 1.0)).max(0.0) as f32))
+        .collect();
     (LinearImage::new(SIZE, SIZE, mean).unwrap(), LinearImage::new(SIZE, SIZE, var).unwrap())
 }
 
@@ -62,7 +79,12 @@ fn kdtrace_seed_statistics() -> (LinearImage, LinearImage) {
 /// s²/K + e² = (s² + K·e²)/K.
 fn test_against(reference: &LinearImage, stderr: &LinearImage, mean: &LinearImage, var: &LinearImage) -> PixelTest {
     let k = SEEDS as f32;
-    let variance = LinearImage::new(SIZE, SIZE, var.pixels.iter().zip(&stderr.pixels).map(|(v, e)| [0, 1, 2].map(|c| v[c] + k * e[c] * e[c])).collect()).unwrap();
+    let variance = LinearImage::new(
+        SIZE,
+        SIZE,
+        var.pixels.iter().zip(&stderr.pixels).map(|(v, e)| [0, 1, 2].map(|c| v[c] + k * e[c] * e[c])).collect(),
+    )
+    .unwrap();
     let stats = PixelStats { mean: mean.clone(), variance, count: vec![SEEDS as u64; (SIZE * SIZE) as usize] };
     pixel_test(reference, &stats, ALPHA).unwrap()
 }
@@ -82,10 +104,16 @@ fn cornell_box_matches_mitsuba_per_pixel_and_in_mean() {
 
     // The same checks reject a wrong reference: mirrored left to right (red and green walls
     // swap sides) fails per pixel, 2% brighter fails the mean.
-    let mirrored = LinearImage::new(SIZE, SIZE, (0..SIZE * SIZE).map(|i| reference.pixels[((i / SIZE) * SIZE + SIZE - 1 - i % SIZE) as usize]).collect()).unwrap();
+    let mirrored = LinearImage::new(
+        SIZE,
+        SIZE,
+        (0..SIZE * SIZE).map(|i| reference.pixels[((i / SIZE) * SIZE + SIZE - 1 - i % SIZE) as usize]).collect(),
+    )
+    .unwrap();
     let bad = test_against(&mirrored, &stderr, &mean, &var);
     assert!(!bad.pass && bad.rejected > 100, "mirrored reference accepted: {bad:?}");
-    let brighter = LinearImage::new(SIZE, SIZE, reference.pixels.iter().map(|p| p.map(|c| c * 1.02)).collect()).unwrap();
+    let brighter =
+        LinearImage::new(SIZE, SIZE, reference.pixels.iter().map(|p| p.map(|c| c * 1.02)).collect()).unwrap();
     let (_, _, _, ratio_bright, _) = pointwise(&brighter, &mean).unwrap();
     assert!((ratio_bright - 1.0).abs() > 0.01, "2% brighter reference accepted: ratio {ratio_bright}");
 }

@@ -14,18 +14,25 @@ fn no_progress(_: u64, _: u64) {}
 /// triangles make it deep enough that a 4-entry short stack overflows and restarts, which the
 /// CPU's shallow tree of eight-triangle leaves rarely does.
 fn water() -> Compiled {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/scenes/CornellBox-Water/CornellBox-Water.obj");
+    let path =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/scenes/CornellBox-Water/CornellBox-Water.obj");
     assert!(path.exists(), "{} is missing", path.display());
     load(&path, BuildSettings::for_gpu()).unwrap().compiled
 }
 
 fn settings() -> RenderSettings {
-    let camera = Camera { eye: Vec3::new(0.0, 1.0, 3.4), target: Vec3::new(0.0, 1.0, 0.0), up: Vec3::Y, fov_deg: 39.3076 };
+    let camera =
+        Camera { eye: Vec3::new(0.0, 1.0, 3.4), target: Vec3::new(0.0, 1.0, 0.0), up: Vec3::Y, fov_deg: 39.3076 };
     RenderSettings { width: 48, height: 40, spp: 8, max_bounces: 5, seed: 3, ..RenderSettings::with_camera(camera) }
 }
 
 fn same(a: &Rendered, b: &Rendered, what: &str) {
-    let differ = a.sum.iter().zip(&b.sum).filter(|(x, y)| x.to_array().map(f32::to_bits) != y.to_array().map(f32::to_bits)).count();
+    let differ = a
+        .sum
+        .iter()
+        .zip(&b.sum)
+        .filter(|(x, y)| x.to_array().map(f32::to_bits) != y.to_array().map(f32::to_bits))
+        .count();
     let primary = a.primary.iter().zip(&b.primary).filter(|(x, y)| x != y).count();
     assert_eq!((differ, primary), (0, 0), "{what}: {differ} pixels and {primary} primary hits differ");
 }
@@ -37,7 +44,11 @@ fn all_traversal_and_dispatch_variants_render_the_same_image() {
     let reference = cpu::render(&c, &RenderSettings { traversal: Traversal::Full, ..base }, &no_progress).unwrap();
     let lit = reference.mean().iter().filter(|p| p[0] + p[1] + p[2] > 0.01).count();
     assert!(lit > reference.sum.len() / 2, "the scene should be mostly lit ({lit} lit pixels)");
-    same(&reference, &cpu::render(&c, &RenderSettings { traversal: Traversal::Short, ..base }, &no_progress).unwrap(), "CPU short stack");
+    same(
+        &reference,
+        &cpu::render(&c, &RenderSettings { traversal: Traversal::Short, ..base }, &no_progress).unwrap(),
+        "CPU short stack",
+    );
     // `auto` takes the full stack on the CPU path (measured faster there).
     let auto = cpu::render(&c, &RenderSettings { traversal: Traversal::Auto, ..base }, &no_progress).unwrap();
     assert_eq!(auto.traversal, Traversal::Full);
@@ -57,15 +68,25 @@ fn all_traversal_and_dispatch_variants_render_the_same_image() {
 /// exact on any tree, so the images must still be identical, bit for bit.
 #[test]
 fn each_device_on_its_own_tree_renders_the_same_image() {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/scenes/CornellBox-Water/CornellBox-Water.obj");
+    let path =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/scenes/CornellBox-Water/CornellBox-Water.obj");
     let cpu_tree = load(&path, BuildSettings::default()).unwrap().compiled;
     let gpu_tree = load(&path, BuildSettings::for_gpu()).unwrap().compiled;
-    assert!(gpu_tree.tree.nodes.len() > 4 * cpu_tree.tree.nodes.len(), "the trees should differ: {} and {} nodes", gpu_tree.tree.nodes.len(), cpu_tree.tree.nodes.len());
+    assert!(
+        gpu_tree.tree.nodes.len() > 4 * cpu_tree.tree.nodes.len(),
+        "the trees should differ: {} and {} nodes",
+        gpu_tree.tree.nodes.len(),
+        cpu_tree.tree.nodes.len()
+    );
     let s = settings();
     let reference = cpu::render(&cpu_tree, &s, &no_progress).unwrap();
     same(&reference, &cpu::render(&gpu_tree, &s, &no_progress).unwrap(), "CPU on the GPU's tree");
     let g = gpu::Gpu::open(None).expect("a Vulkan adapter (lavapipe in CI)");
-    same(&reference, &g.render(&gpu_tree, &s, &no_progress).unwrap(), &format!("GPU on its own tree, {}", g.adapter.name));
+    same(
+        &reference,
+        &g.render(&gpu_tree, &s, &no_progress).unwrap(),
+        &format!("GPU on its own tree, {}", g.adapter.name),
+    );
 }
 
 #[test]
@@ -81,8 +102,14 @@ fn cost_aov_counts_the_camera_ray_work_on_both_devices() {
         // (half of the two-sample mean at least); rays that miss the scene box cost nothing.
         let hit: Vec<usize> = (0..mean.len()).filter(|&i| a.primary[i] != shared::layout::NO_HIT).collect();
         assert!(hit.len() > mean.len() / 2, "{traversal:?}: only {} camera rays hit", hit.len());
-        assert!(hit.iter().all(|&i| mean[i][0] >= 0.5 && mean[i][1] >= 0.5), "{traversal:?}: a hit without traversal work");
-        assert!(mean.iter().any(|p| p[0] >= 10.0), "{traversal:?}: no camera ray went deeper than 10 nodes in a 7k-triangle tree");
+        assert!(
+            hit.iter().all(|&i| mean[i][0] >= 0.5 && mean[i][1] >= 0.5),
+            "{traversal:?}: a hit without traversal work"
+        );
+        assert!(
+            mean.iter().any(|p| p[0] >= 10.0),
+            "{traversal:?}: no camera ray went deeper than 10 nodes in a 7k-triangle tree"
+        );
         let restarts: f32 = mean.iter().map(|p| p[2]).sum();
         match traversal {
             Traversal::Full => assert_eq!(restarts, 0.0, "the full stack never restarts"),

@@ -16,8 +16,21 @@ fn cornell() -> Compiled {
 }
 
 fn settings(sampler: SamplerKind, seed: u32, spp: u32, side: u32) -> RenderSettings {
-    let camera = Camera { eye: Vec3::new(0.278, 0.273, 0.8), target: Vec3::new(0.278, 0.273, 0.0), up: Vec3::Y, fov_deg: 39.3076 };
-    RenderSettings { width: side, height: side, spp, max_bounces: 4, seed, sampler, ..RenderSettings::with_camera(camera) }
+    let camera = Camera {
+        eye: Vec3::new(0.278, 0.273, 0.8),
+        target: Vec3::new(0.278, 0.273, 0.0),
+        up: Vec3::Y,
+        fov_deg: 39.3076,
+    };
+    RenderSettings {
+        width: side,
+        height: side,
+        spp,
+        max_bounces: 4,
+        seed,
+        sampler,
+        ..RenderSettings::with_camera(camera)
+    }
 }
 
 /// Mean squared error per channel value against `reference`, and how far the test image's mean

@@ -2,10 +2,10 @@
 //! transforms and material overrides do what the README says, flags override the file, and
 //! degenerate geometry is dropped with a counted warning.
 use kdtrace::kdbuild::BuildSettings;
+use kdtrace::local_frame::point_to_world;
 use kdtrace::scene::Scene;
 use kdtrace::scene_settings::SceneSettings;
 use kdtrace::{load, Loaded};
-use kdtrace::local_frame::point_to_world;
 use shared::glam::{Vec3, Vec4};
 use shared::triangle::geometric_normal;
 use shared::vecmath::xyz;
@@ -51,7 +51,11 @@ fn resolved(l: &Loaded) -> kdtrace::render::RenderSettings {
 
 /// Every scene file in scenes/.
 fn scene_files() -> Vec<PathBuf> {
-    let mut v: Vec<PathBuf> = std::fs::read_dir(repo("scenes")).unwrap().map(|e| e.unwrap().path()).filter(|p| p.extension().is_some_and(|e| e == "toml")).collect();
+    let mut v: Vec<PathBuf> = std::fs::read_dir(repo("scenes"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
     v.sort();
     assert!(v.len() >= 4, "scenes/ should hold the Cornell box and the test meshes' scene files: {v:?}");
     v
@@ -78,12 +82,24 @@ fn every_scene_file_loads_and_export_round_trips() {
         let (a, b) = (loaded(&src), loaded(&first));
         assert_same_scene(&a.compiled.scene, &b.compiled.scene, &src.display().to_string());
         let (sa, sb) = (resolved(&a), resolved(&b));
-        assert_eq!((sa.camera, sa.width, sa.height, sa.spp, sa.max_bounces, sa.seed, sa.environment), (sb.camera, sb.width, sb.height, sb.spp, sb.max_bounces, sb.seed, sb.environment), "{}", src.display());
+        assert_eq!(
+            (sa.camera, sa.width, sa.height, sa.spp, sa.max_bounces, sa.seed, sa.environment),
+            (sb.camera, sb.width, sb.height, sb.spp, sb.max_bounces, sb.seed, sb.environment),
+            "{}",
+            src.display()
+        );
         assert_eq!(a.settings.time_limit_s, b.settings.time_limit_s);
         // Exporting the export, from another folder, gives the same file bar the comment.
         let second = tmp_dir(&format!("export-{i}/deeper")).join("second.toml");
         assert!(kdtrace(&["export", first.to_str().unwrap(), "--out", second.to_str().unwrap()]).status.success());
-        let body = |p: &Path| std::fs::read_to_string(p).unwrap().lines().filter(|l| !l.starts_with('#') && !l.starts_with("file")).collect::<Vec<_>>().join("\n");
+        let body = |p: &Path| {
+            std::fs::read_to_string(p)
+                .unwrap()
+                .lines()
+                .filter(|l| !l.starts_with('#') && !l.starts_with("file"))
+                .collect::<Vec<_>>()
+                .join("\n")
+        };
         assert_eq!(body(&first), body(&second), "{}: export is not a fixed point", src.display());
         assert_same_scene(&a.compiled.scene, &loaded(&second).compiled.scene, "second export");
     }
@@ -103,8 +119,13 @@ fn an_obj_exports_to_a_scene_file_with_its_default_camera() {
 }
 
 fn one_triangle_obj(dir: &Path) {
-    std::fs::write(dir.join("tri.mtl"), "newmtl lamp\nKd 0.5 0.5 0.5\nKe 1 1 1\nnewmtl wall\nKd 0.2 0.2 0.2\n").unwrap();
-    std::fs::write(dir.join("tri.obj"), "mtllib tri.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl lamp\nf 1 2 3\nusemtl wall\nf 1 3 2\n").unwrap();
+    std::fs::write(dir.join("tri.mtl"), "newmtl lamp\nKd 0.5 0.5 0.5\nKe 1 1 1\nnewmtl wall\nKd 0.2 0.2 0.2\n")
+        .unwrap();
+    std::fs::write(
+        dir.join("tri.obj"),
+        "mtllib tri.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl lamp\nf 1 2 3\nusemtl wall\nf 1 3 2\n",
+    )
+    .unwrap();
 }
 
 #[test]
@@ -112,7 +133,11 @@ fn transforms_apply_scale_then_rotate_then_translate() {
     let dir = tmp_dir("transform");
     one_triangle_obj(&dir);
     let scene = dir.join("t.toml");
-    std::fs::write(&scene, "[[mesh]]\nfile = \"tri.obj\"\nscale = [2, 1, 1]\nrotate = [0, 0, 90]\ntranslate = [0, 0, 5]\n").unwrap();
+    std::fs::write(
+        &scene,
+        "[[mesh]]\nfile = \"tri.obj\"\nscale = [2, 1, 1]\nrotate = [0, 0, 90]\ntranslate = [0, 0, 5]\n",
+    )
+    .unwrap();
     let l = loaded(&scene);
     let t = l.compiled.scene.triangles[0];
     // The loaded scene is stored relative to its origin (`local_frame`): here z = 5 on every
@@ -183,7 +208,11 @@ fn material_overrides_by_mtl_name_and_for_the_whole_mesh() {
     assert_eq!(xyz(sun.emission), Vec3::splat(3.0));
     assert_eq!(s.lights.len(), 2);
     // A whole-mesh override: every face grey, so no light is left.
-    std::fs::write(&scene, "[materials.grey]\nalbedo = [0.5, 0.5, 0.5]\n[[mesh]]\nfile = \"cornell-box.obj\"\nmaterial = \"grey\"\n").unwrap();
+    std::fs::write(
+        &scene,
+        "[materials.grey]\nalbedo = [0.5, 0.5, 0.5]\n[[mesh]]\nfile = \"cornell-box.obj\"\nmaterial = \"grey\"\n",
+    )
+    .unwrap();
     let l = loaded(&scene);
     assert!(l.compiled.scene.info.iter().all(|t| l.compiled.scene.material_names[t.material as usize] == "grey"));
     assert!(l.compiled.scene.lights.is_empty());
@@ -210,12 +239,27 @@ fn flags_override_the_scene_file_which_overrides_the_defaults() {
         serde_json::from_slice(&o.stdout).unwrap()
     };
     let j = run(&[]);
-    assert_eq!((j["width"].as_u64(), j["height"].as_u64(), j["spp"].as_u64(), j["bounces"].as_u64(), j["seed"].as_u64()), (Some(20), Some(10), Some(2), Some(1), Some(7)));
+    assert_eq!(
+        (j["width"].as_u64(), j["height"].as_u64(), j["spp"].as_u64(), j["bounces"].as_u64(), j["seed"].as_u64()),
+        (Some(20), Some(10), Some(2), Some(1), Some(7))
+    );
     let j = run(&["--spp", "3", "--width", "8", "--seed", "1"]);
-    assert_eq!((j["width"].as_u64(), j["height"].as_u64(), j["spp"].as_u64(), j["bounces"].as_u64(), j["seed"].as_u64()), (Some(8), Some(10), Some(3), Some(1), Some(1)));
+    assert_eq!(
+        (j["width"].as_u64(), j["height"].as_u64(), j["spp"].as_u64(), j["bounces"].as_u64(), j["seed"].as_u64()),
+        (Some(8), Some(10), Some(3), Some(1), Some(1))
+    );
     // The environment reaches the renderer: looking away from the box sees it.
     let exr = dir.join("env.exr");
-    let o = kdtrace(&["render", scene.to_str().unwrap(), "--out", exr.to_str().unwrap(), "--eye", "0,0,5", "--target", "0,0,10"]);
+    let o = kdtrace(&[
+        "render",
+        scene.to_str().unwrap(),
+        "--out",
+        exr.to_str().unwrap(),
+        "--eye",
+        "0,0,5",
+        "--target",
+        "0,0,10",
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let (_, _, px) = kdtrace::image_io::read_exr(&exr).unwrap();
     assert!(px.iter().all(|p| (p[0] - 0.2).abs() < 1e-6), "environment not seen: {:?}", px[0]);
@@ -227,9 +271,22 @@ fn flags_override_the_scene_file_which_overrides_the_defaults() {
 fn degenerate_geometry_is_dropped_with_a_counted_warning() {
     let dir = tmp_dir("degenerate");
     let obj = dir.join("d.obj");
-    std::fs::write(&obj, "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\nf 1 2 3\nf 1 2 4\nf 1 1 3\np 1 2\nl 1 2 3\nf 1 2\n").unwrap();
+    std::fs::write(&obj, "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\nf 1 2 3\nf 1 2 4\nf 1 1 3\np 1 2\nl 1 2 3\nf 1 2\n")
+        .unwrap();
     let out = dir.join("d.png");
-    let o = kdtrace(&["render", obj.to_str().unwrap(), "--out", out.to_str().unwrap(), "--spp", "1", "--width", "4", "--height", "4", "--json"]);
+    let o = kdtrace(&[
+        "render",
+        obj.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--spp",
+        "1",
+        "--width",
+        "4",
+        "--height",
+        "4",
+        "--json",
+    ]);
     let err = stderr(&o);
     assert!(o.status.success(), "{err}");
     assert!(err.contains("d.obj: 2 zero-area triangles dropped"), "{err}");

@@ -28,7 +28,12 @@ fn cornell(light_scale: f32) -> Compiled {
 }
 
 fn settings(seed: u32, spp: u32) -> RenderSettings {
-    let camera = Camera { eye: Vec3::new(0.278, 0.273, 0.8), target: Vec3::new(0.278, 0.273, 0.0), up: Vec3::Y, fov_deg: 39.3076 };
+    let camera = Camera {
+        eye: Vec3::new(0.278, 0.273, 0.8),
+        target: Vec3::new(0.278, 0.273, 0.0),
+        up: Vec3::Y,
+        fov_deg: 39.3076,
+    };
     RenderSettings { width: 24, height: 24, spp, max_bounces: 4, seed, ..RenderSettings::with_camera(camera) }
 }
 
@@ -39,7 +44,10 @@ fn cpu_and_gpu_agree_pixel_by_pixel_under_a_t_test() {
     let a = cpu::render(&c, &settings(1, 256), &no_progress).unwrap();
     let b = g.render(&c, &settings(2, 256), &no_progress).unwrap();
     let t = two_image_test(&a.stats().unwrap(), &b.stats().unwrap(), 0.01).unwrap();
-    eprintln!("CPU seed 1 vs {} seed 2: {} of {} channel values rejected, smallest p {:.2e} (level {:.2e})", g.adapter.name, t.rejected, t.tests, t.min_p, t.per_test_alpha);
+    eprintln!(
+        "CPU seed 1 vs {} seed 2: {} of {} channel values rejected, smallest p {:.2e} (level {:.2e})",
+        g.adapter.name, t.rejected, t.tests, t.min_p, t.per_test_alpha
+    );
     assert!(t.pass, "{t:?}");
     assert!(t.tests >= 24 * 24 * 3 * 9 / 10, "too few pixels could be tested: {}", t.tests);
     // The test has power: a light 10% brighter on the GPU is caught.
@@ -58,11 +66,19 @@ fn a_time_limit_stops_on_whole_samples() {
     let limited = RenderSettings { spp: 1 << 20, time_limit_s: Some(0.3), ..settings(5, 1) };
     let r = cpu::render(&c, &limited, &no_progress).unwrap();
     assert!(r.spp >= 1 && r.spp < 1 << 20, "CPU reached {} spp", r.spp);
-    assert!(same_sums(&r, &cpu::render(&c, &settings(5, r.spp), &no_progress).unwrap()), "CPU: the time-limited image is not the {}-spp image", r.spp);
+    assert!(
+        same_sums(&r, &cpu::render(&c, &settings(5, r.spp), &no_progress).unwrap()),
+        "CPU: the time-limited image is not the {}-spp image",
+        r.spp
+    );
     let g = gpu::Gpu::open(None).expect("a Vulkan adapter (lavapipe in CI)");
     let r = g.render(&c, &limited, &no_progress).unwrap();
     assert!(r.spp >= 1 && r.spp < 1 << 20, "GPU reached {} spp", r.spp);
-    assert!(same_sums(&r, &g.render(&c, &settings(5, r.spp), &no_progress).unwrap()), "GPU: the time-limited image is not the {}-spp image", r.spp);
+    assert!(
+        same_sums(&r, &g.render(&c, &settings(5, r.spp), &no_progress).unwrap()),
+        "GPU: the time-limited image is not the {}-spp image",
+        r.spp
+    );
 }
 
 #[test]
@@ -72,15 +88,57 @@ fn render_variance_and_compare_test_a_render_against_the_mitsuba_reference() {
     let (out, var) = (dir.join("r.exr"), dir.join("v.exr"));
     let bin = env!("CARGO_BIN_EXE_kdtrace");
     let o = Command::new(bin)
-        .args(["render", repo("scenes/cornell-box.obj").to_str().unwrap(), "--out", out.to_str().unwrap(), "--variance", var.to_str().unwrap()])
-        .args(["--width", "32", "--height", "32", "--spp", "1024", "--bounces", "6", "--seed", "3", "--eye", "0.278,0.273,0.8", "--target", "0.278,0.273,0", "--up", "0,1,0", "--fov", "39.3076", "--json"])
+        .args([
+            "render",
+            repo("scenes/cornell-box.obj").to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--variance",
+            var.to_str().unwrap(),
+        ])
+        .args([
+            "--width",
+            "32",
+            "--height",
+            "32",
+            "--spp",
+            "1024",
+            "--bounces",
+            "6",
+            "--seed",
+            "3",
+            "--eye",
+            "0.278,0.273,0.8",
+            "--target",
+            "0.278,0.273,0",
+            "--up",
+            "0,1,0",
+            "--fov",
+            "39.3076",
+            "--json",
+        ])
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let reference = repo("tests/data/cornell-box-mitsuba-32.exr");
-    let compare = |variance: &PathBuf| Command::new(bin).args(["compare", reference.to_str().unwrap(), out.to_str().unwrap(), "--variance", variance.to_str().unwrap(), "--spp", "1024", "--json"]).output().unwrap();
+    let compare = |variance: &PathBuf| {
+        Command::new(bin)
+            .args([
+                "compare",
+                reference.to_str().unwrap(),
+                out.to_str().unwrap(),
+                "--variance",
+                variance.to_str().unwrap(),
+                "--spp",
+                "1024",
+                "--json",
+            ])
+            .output()
+            .unwrap()
+    };
     let o = compare(&var);
-    let line: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap_or_else(|_| panic!("{}", String::from_utf8_lossy(&o.stderr)));
+    let line: serde_json::Value =
+        serde_json::from_slice(&o.stdout).unwrap_or_else(|_| panic!("{}", String::from_utf8_lossy(&o.stderr)));
     eprintln!("pixel test against Mitsuba: {}", line["pixel_test"]);
     assert_eq!(line["pixel_test"]["pass"], true, "{line}");
     assert!(o.status.success());

@@ -44,7 +44,8 @@ fn sphere(scale: f32, shift: f32) -> Compiled {
     let mut tris = icosphere(4);
     Placement { scale: Vec3::splat(scale), translate: Vec3::splat(shift), ..Default::default() }.apply(&mut tris);
     let n = tris.len();
-    let scene = Scene::new(tris, vec![0; n], vec![diffuse(Vec3::splat(0.5), Vec3::ZERO)], vec!["sphere".into()]).unwrap();
+    let scene =
+        Scene::new(tris, vec![0; n], vec![diffuse(Vec3::splat(0.5), Vec3::ZERO)], vec!["sphere".into()]).unwrap();
     assert_eq!(scene.triangles.len(), n, "scale {scale}, shift {shift}: triangles collapsed");
     compile(scene, BuildSettings::default())
 }
@@ -63,7 +64,8 @@ fn unit(rng: &mut Pcg64) -> Vec3 {
 /// random direction, a vertex exactly, or an edge's midpoint.
 fn inside_ray(c: &Compiled, rng: &mut Pcg64, scale: f32, shift: f32) -> (Vec3, Vec3) {
     let centre = Vec3::splat(shift);
-    let o = if rng.random_range(0..8) == 0 { centre } else { centre + unit(rng) * (scale * rng.random_range(0.0..0.9f32)) };
+    let o =
+        if rng.random_range(0..8) == 0 { centre } else { centre + unit(rng) * (scale * rng.random_range(0.0..0.9f32)) };
     let t = &c.scene.triangles[rng.random_range(0..c.scene.triangles.len())];
     let (a, b) = match rng.random_range(0..3) {
         0 => (t.v0, t.v1),
@@ -99,18 +101,28 @@ fn no_ray_escapes_a_closed_mesh_at_any_scale() {
             .into_par_iter()
             .chunks(4096)
             .flat_map_iter(|chunk| {
-                let mut rng = Pcg64::seed_from_u64(chunk[0] as u64 ^ scale.to_bits() as u64 ^ ((shift.to_bits() as u64) << 32));
+                let mut rng =
+                    Pcg64::seed_from_u64(chunk[0] as u64 ^ scale.to_bits() as u64 ^ ((shift.to_bits() as u64) << 32));
                 let scene = &scene;
                 let c = &c;
-                chunk.into_iter().filter_map(move |i| {
-                    let (o, d) = inside_ray(c, &mut rng, scale, shift);
-                    let traversal = if i % 2 == 0 { TRAVERSAL_SHORT_STACK } else { TRAVERSAL_FULL_STACK };
-                    (!closest(scene, traversal, o, d, f32::MAX).hit.is_hit()).then_some((o, d))
-                }).collect::<Vec<_>>()
+                chunk
+                    .into_iter()
+                    .filter_map(move |i| {
+                        let (o, d) = inside_ray(c, &mut rng, scale, shift);
+                        let traversal = if i % 2 == 0 { TRAVERSAL_SHORT_STACK } else { TRAVERSAL_FULL_STACK };
+                        (!closest(scene, traversal, o, d, f32::MAX).hit.is_hit()).then_some((o, d))
+                    })
+                    .collect::<Vec<_>>()
             })
             .collect();
         eprintln!("scale {scale:e}, shift {shift:e}: {n} rays from inside, {} escaped", escapes.len());
-        assert!(escapes.is_empty(), "scale {scale:e}, shift {shift:e}: {} of {n} rays escaped, e.g. o={:?} d={:?}", escapes.len(), escapes[0].0, escapes[0].1);
+        assert!(
+            escapes.is_empty(),
+            "scale {scale:e}, shift {shift:e}: {} of {n} rays escaped, e.g. o={:?} d={:?}",
+            escapes.len(),
+            escapes[0].0,
+            escapes[0].1
+        );
     }
 }
 
@@ -143,7 +155,10 @@ fn spawned_rays_never_hit_the_surface_they_leave() {
                 ((again.triangle == hit.triangle) as usize, out.is_hit() as usize)
             })
             .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
-        eprintln!("scale {scale:e}, shift {shift:e}: {per} hits, {} re-hits inward, {} hits outward", rehits, outward_hits);
+        eprintln!(
+            "scale {scale:e}, shift {shift:e}: {per} hits, {} re-hits inward, {} hits outward",
+            rehits, outward_hits
+        );
         assert_eq!((rehits, outward_hits), (0, 0), "scale {scale:e}, shift {shift:e}");
     }
 }
@@ -153,7 +168,8 @@ fn intersect_f64(o: [f64; 3], d: [f64; 3], t: &Triangle) -> Option<f64> {
     let v = |p: shared::glam::Vec4| [p.x as f64, p.y as f64, p.z as f64];
     let (a, b, c) = (v(t.v0), v(t.v1), v(t.v2));
     let sub = |p: [f64; 3], q: [f64; 3]| [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
-    let cross = |p: [f64; 3], q: [f64; 3]| [p[1] * q[2] - p[2] * q[1], p[2] * q[0] - p[0] * q[2], p[0] * q[1] - p[1] * q[0]];
+    let cross =
+        |p: [f64; 3], q: [f64; 3]| [p[1] * q[2] - p[2] * q[1], p[2] * q[0] - p[0] * q[2], p[0] * q[1] - p[1] * q[0]];
     let dot = |p: [f64; 3], q: [f64; 3]| p[0] * q[0] + p[1] * q[1] + p[2] * q[2];
     let (e1, e2) = (sub(b, a), sub(c, a));
     let p = cross(d, e2);
@@ -175,7 +191,13 @@ fn intersect_f64(o: [f64; 3], d: [f64; 3], t: &Triangle) -> Option<f64> {
 fn watertight_t_bound(o: Vec3, d: Vec3, t: &Triangle) -> f64 {
     let gamma = |n: f64| n * (f32::EPSILON as f64 / 2.0) / (1.0 - n * (f32::EPSILON as f64 / 2.0));
     let ad = d.abs();
-    let kz = if ad.x >= ad.y && ad.x >= ad.z { 0 } else if ad.y >= ad.z { 1 } else { 2 };
+    let kz = if ad.x >= ad.y && ad.x >= ad.z {
+        0
+    } else if ad.y >= ad.z {
+        1
+    } else {
+        2
+    };
     let (kx, ky) = ((kz + 1) % 3, (kz + 2) % 3);
     let (dx, dy, dz) = (d[kx] as f64, d[ky] as f64, d[kz] as f64);
     let (sx, sy, sz) = (dx / dz, dy / dz, 1.0 / dz);
@@ -224,7 +246,10 @@ fn f32_hits_agree_with_an_f64_reference() {
     let mut tris = icosphere(2);
     Placement { scale: Vec3::splat(3.0), translate: Vec3::new(10.0, -4.0, 7.0), ..Default::default() }.apply(&mut tris);
     let n = tris.len();
-    let c = compile(Scene::new(tris, vec![0; n], vec![diffuse(Vec3::splat(0.5), Vec3::ZERO)], vec!["s".into()]).unwrap(), BuildSettings::default());
+    let c = compile(
+        Scene::new(tris, vec![0; n], vec![diffuse(Vec3::splat(0.5), Vec3::ZERO)], vec!["s".into()]).unwrap(),
+        BuildSettings::default(),
+    );
     let params = c.bounds_params();
     let scene = c.view(&params);
     let rays = rays_per_config();

@@ -5,8 +5,8 @@
 //! deduplicated scene. Garbage rays are misses on every traversal.
 use kdtrace::camera::Camera;
 use kdtrace::kdbuild::BuildSettings;
-use kdtrace::render::{Compiled, RenderSettings, Rendered, Traversal};
 use kdtrace::local_frame::to_local;
+use kdtrace::render::{Compiled, RenderSettings, Rendered, Traversal};
 use kdtrace::scene::Scene;
 use kdtrace::transform::Placement;
 use kdtrace::verify::compare;
@@ -36,7 +36,12 @@ fn placed(scene: &Scene, scale: f32, shift: f32) -> Compiled {
 
 fn settings(scale: f32, shift: f32, seed: u32) -> RenderSettings {
     let p = |v: Vec3| v * scale + Vec3::splat(shift);
-    let camera = Camera { eye: p(Vec3::new(0.278, 0.273, 0.8)), target: p(Vec3::new(0.278, 0.273, -0.2796)), up: Vec3::Y, fov_deg: 39.3076 };
+    let camera = Camera {
+        eye: p(Vec3::new(0.278, 0.273, 0.8)),
+        target: p(Vec3::new(0.278, 0.273, -0.2796)),
+        up: Vec3::Y,
+        fov_deg: 39.3076,
+    };
     RenderSettings { width: 48, height: 48, spp: 64, max_bounces: 4, seed, ..RenderSettings::with_camera(camera) }
 }
 
@@ -129,8 +134,14 @@ fn scaled_and_moved_cornell_boxes_render_like_the_plain_one() {
             let world_img = cpu::render(&world, &s, &no_progress).unwrap();
             let world_gpu = g.render(&world, &s, &no_progress).unwrap();
             let (ratio, z) = (mean_of(&world_img) / mean_of(&reference), block_z(&reference, &world_img));
-            eprintln!("shift {shift:e} in world coordinates: mean ratio {ratio:.4}, largest block |z| {z:.2} (bound {:.2})", z_bound());
-            assert!(finite(&world_img) && finite(&world_gpu) && (ratio - 1.0).abs() < 0.05, "world coordinates at {shift:e}: ratio {ratio}");
+            eprintln!(
+                "shift {shift:e} in world coordinates: mean ratio {ratio:.4}, largest block |z| {z:.2} (bound {:.2})",
+                z_bound()
+            );
+            assert!(
+                finite(&world_img) && finite(&world_gpu) && (ratio - 1.0).abs() < 0.05,
+                "world coordinates at {shift:e}: ratio {ratio}"
+            );
             assert!(compare(&world_img, &world_gpu).pass, "world coordinates at {shift:e}: CPU and GPU disagree");
             local
         };
@@ -140,7 +151,10 @@ fn scaled_and_moved_cornell_boxes_render_like_the_plain_one() {
         let agreement = compare(&img, &gpu_img);
         eprintln!("scale {scale:e}, shift {shift:e}: largest block |z| {z:.2} (bound {:.2}); CPU/GPU pixels within 1e-3: {}/{}", z_bound(), agreement.pixels_within, agreement.pixels);
         assert!(finite(&img) && finite(&gpu_img), "scale {scale:e}, shift {shift:e}: non-finite or negative samples");
-        assert!(z < z_bound(), "scale {scale:e}, shift {shift:e}: a block differs from the reference by {z:.2} standard errors");
+        assert!(
+            z < z_bound(),
+            "scale {scale:e}, shift {shift:e}: a block differs from the reference by {z:.2} standard errors"
+        );
         assert!(agreement.pass, "scale {scale:e}, shift {shift:e}: CPU and GPU disagree: {agreement:?}");
     }
     // The statistic notices a real change: a box with the light 10% dimmer fails it.
@@ -172,7 +186,15 @@ fn coincident_duplicate_faces_render_like_the_deduplicated_scene() {
     assert!(duplicates >= 4, "expected the boxes' duplicated fronts, found {duplicates} duplicates");
     let without = Scene::new(tris, mats, with.materials.clone(), with.material_names.clone()).unwrap();
     let camera = Camera { eye: Vec3::new(0.0, 1.0, 3.4), target: Vec3::new(0.0, 1.0, 0.0), up: Vec3::Y, fov_deg: 39.3 };
-    let s = |seed| RenderSettings { width: 48, height: 48, spp: 64, max_bounces: 4, seed, traversal: Traversal::Short, ..RenderSettings::with_camera(camera) };
+    let s = |seed| RenderSettings {
+        width: 48,
+        height: 48,
+        spp: 64,
+        max_bounces: 4,
+        seed,
+        traversal: Traversal::Short,
+        ..RenderSettings::with_camera(camera)
+    };
     let (cw, cwo) = (compile(with, BuildSettings::default()), compile(without, BuildSettings::default()));
     let a = cpu::render(&cw, &s(1), &no_progress).unwrap();
     let b = cpu::render(&cwo, &s(2), &no_progress).unwrap();

@@ -43,7 +43,10 @@ pub fn render(c: &Compiled, s: &RenderSettings, progress: Progress) -> Result<Re
                     let before = sum[x].w;
                     render_pixel(&scene, &params, x as u32, y as u32, &mut sum[x], &mut sum_sq[x], &mut primary[x]);
                     if sum[x].w > before {
-                        eprintln!("warning: pixel ({x}, {y}): {} non-finite or negative sample(s) zeroed", sum[x].w - before);
+                        eprintln!(
+                            "warning: pixel ({x}, {y}): {} non-finite or negative sample(s) zeroed",
+                            sum[x].w - before
+                        );
                     }
                 }
                 let k = w as u64 * count as u64;

@@ -79,7 +79,11 @@ fn bind_group_layout_entries() -> Vec<wgpu::BindGroupLayoutEntry> {
             binding: b,
             visibility: wgpu::ShaderStages::COMPUTE,
             ty: wgpu::BindingType::Buffer {
-                ty: if b == binding::PARAMS { wgpu::BufferBindingType::Uniform } else { wgpu::BufferBindingType::Storage { read_only: !binding::WRITABLE.contains(&b) } },
+                ty: if b == binding::PARAMS {
+                    wgpu::BufferBindingType::Uniform
+                } else {
+                    wgpu::BufferBindingType::Storage { read_only: !binding::WRITABLE.contains(&b) }
+                },
                 has_dynamic_offset: false,
                 min_binding_size: None,
             },
@@ -126,7 +130,11 @@ impl Gpu {
         let limits = adapter.limits();
         let storage = binding::COUNT - 1;
         if limits.max_storage_buffers_per_shader_stage < storage {
-            bail!("adapter {:?} allows {} storage buffers per stage; the kernel needs {storage}", info.name, limits.max_storage_buffers_per_shader_stage);
+            bail!(
+                "adapter {:?} allows {} storage buffers per stage; the kernel needs {storage}",
+                info.name,
+                limits.max_storage_buffers_per_shader_stage
+            );
         }
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("kdtrace"),
@@ -139,9 +147,19 @@ impl Gpu {
         .with_context(|| format!("opening adapter {:?}", info.name))?;
         // Validation errors become an `Err` here instead of wgpu's default panic.
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some("kernel"), source: wgpu::util::make_spirv(KERNEL_SPV) });
-        let bind_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("scene"), entries: &bind_group_layout_entries() });
-        let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label: Some("scene"), bind_group_layouts: &[Some(&bind_layout)], immediate_size: 0 });
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("kernel"),
+            source: wgpu::util::make_spirv(KERNEL_SPV),
+        });
+        let bind_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("scene"),
+            entries: &bind_group_layout_entries(),
+        });
+        let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("scene"),
+            bind_group_layouts: &[Some(&bind_layout)],
+            immediate_size: 0,
+        });
         if let Some(e) = pollster::block_on(scope.pop()) {
             bail!("adapter {:?} rejected the kernel: {e}", info.name);
         }
@@ -167,7 +185,11 @@ impl Gpu {
     }
 
     /// The pipeline of kernel entry point `entry`, compiled on first use.
-    fn pipeline<'a>(&self, cell: &'a OnceLock<wgpu::ComputePipeline>, entry: &str) -> Result<&'a wgpu::ComputePipeline> {
+    fn pipeline<'a>(
+        &self,
+        cell: &'a OnceLock<wgpu::ComputePipeline>,
+        entry: &str,
+    ) -> Result<&'a wgpu::ComputePipeline> {
         if let Some(p) = cell.get() {
             return Ok(p);
         }
@@ -192,13 +214,22 @@ impl Gpu {
     }
 
     fn storage(&self, label: &str, data: &[u8]) -> wgpu::Buffer {
-        self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents: data, usage: wgpu::BufferUsages::STORAGE })
+        self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents: data,
+            usage: wgpu::BufferUsages::STORAGE,
+        })
     }
 
     /// A read-write buffer of `size` bytes that can be copied out; at least 16 bytes, since
     /// storage buffers may not be empty.
     fn output(&self, label: &str, size: u64) -> wgpu::Buffer {
-        self.device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size: size.max(16), usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC, mapped_at_creation: false })
+        self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: size.max(16),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        })
     }
 
     fn check_size(&self, what: &str, bytes: usize) -> Result<()> {
@@ -223,7 +254,10 @@ impl Gpu {
             params,
             nodes: self.storage("nodes", bytemuck::cast_slice(&c.tree.nodes)),
             // Storage buffers may not be empty: a tree always has a node, the rest get a zero word.
-            indices: self.storage("indices", bytemuck::cast_slice(if c.tree.indices.is_empty() { &[0u32][..] } else { &c.tree.indices })),
+            indices: self.storage(
+                "indices",
+                bytemuck::cast_slice(if c.tree.indices.is_empty() { &[0u32][..] } else { &c.tree.indices }),
+            ),
             triangles: self.storage("triangles", bytemuck::cast_slice(&c.scene.triangles)),
             info: self.storage("info", bytemuck::cast_slice(&c.scene.info)),
             materials: self.storage("materials", bytemuck::cast_slice(&c.scene.materials)),
@@ -236,17 +270,50 @@ impl Gpu {
 
     /// The bind group of all bindings: the scene's, then the outputs and ray buffers.
     #[allow(clippy::too_many_arguments)]
-    fn bind(&self, s: &SceneBuffers, accum: &wgpu::Buffer, primary: &wgpu::Buffer, rays: &wgpu::Buffer, results: &wgpu::Buffer, queue: &wgpu::Buffer, accum_sq: &wgpu::Buffer) -> wgpu::BindGroup {
-        let buffers = [&s.params, &s.nodes, &s.indices, &s.triangles, &s.info, &s.materials, &s.lights, accum, primary, rays, results, queue, accum_sq, &s.blocks];
+    fn bind(
+        &self,
+        s: &SceneBuffers,
+        accum: &wgpu::Buffer,
+        primary: &wgpu::Buffer,
+        rays: &wgpu::Buffer,
+        results: &wgpu::Buffer,
+        queue: &wgpu::Buffer,
+        accum_sq: &wgpu::Buffer,
+    ) -> wgpu::BindGroup {
+        let buffers = [
+            &s.params,
+            &s.nodes,
+            &s.indices,
+            &s.triangles,
+            &s.info,
+            &s.materials,
+            &s.lights,
+            accum,
+            primary,
+            rays,
+            results,
+            queue,
+            accum_sq,
+            &s.blocks,
+        ];
         debug_assert_eq!(buffers.len() as u32, binding::COUNT);
-        let entries: Vec<wgpu::BindGroupEntry> = buffers.iter().enumerate().map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() }).collect();
-        self.device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some("scene"), layout: &self.bind_layout, entries: &entries })
+        let entries: Vec<wgpu::BindGroupEntry> = buffers
+            .iter()
+            .enumerate()
+            .map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() })
+            .collect();
+        self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("scene"),
+            layout: &self.bind_layout,
+            entries: &entries,
+        })
     }
 
     fn dispatch(&self, pipeline: &wgpu::ComputePipeline, group: &wgpu::BindGroup, groups: (u32, u32)) -> Result<()> {
         let mut encoder = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("pass") });
         {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("compute"), timestamp_writes: None });
+            let mut pass = encoder
+                .begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("compute"), timestamp_writes: None });
             pass.set_pipeline(pipeline);
             pass.set_bind_group(0, group, &[]);
             pass.dispatch_workgroups(groups.0, groups.1, 1);
@@ -267,13 +334,20 @@ impl Gpu {
         let accum_sq = self.output("accum squares", accum_bytes);
         let primary = self.output("primary", pixels * 4);
         let (rays, results) = (self.output("rays (unused)", 0), self.output("results (unused)", 0));
-        let work = self.device.create_buffer(&wgpu::BufferDescriptor { label: Some("work queue"), size: 16, usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST, mapped_at_creation: false });
+        let work = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("work queue"),
+            size: 16,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
         let group = self.bind(&scene, &accum, &primary, &rays, &results, &work, &accum_sq);
         // Work per invocation and dispatch, bounded on CPU adapters (see `CPU_ADAPTER_*`).
         let cpu_adapter = self.is_cpu();
         let batches = pixels.div_ceil(PERSISTENT_GROUP as u64) as u32;
         let (max_per_pass, rounds, persistent_groups) = match (s.dispatch, cpu_adapter) {
-            (Dispatch::Persistent, true) => (1, CPU_ADAPTER_PERSISTENT_ROUNDS, batches.div_ceil(CPU_ADAPTER_PERSISTENT_ROUNDS)),
+            (Dispatch::Persistent, true) => {
+                (1, CPU_ADAPTER_PERSISTENT_ROUNDS, batches.div_ceil(CPU_ADAPTER_PERSISTENT_ROUNDS))
+            }
             (Dispatch::Persistent, false) => (s.spp, u32::MAX, batches.min(PERSISTENT_GROUPS)),
             (Dispatch::Plain, true) => (CPU_ADAPTER_SAMPLES_PER_PASS, 0, 0),
             (Dispatch::Plain, false) => (s.spp, 0, 0),
@@ -289,7 +363,9 @@ impl Gpu {
             params.persistent_rounds = rounds;
             self.queue.write_buffer(&scene.params, 0, bytemuck::bytes_of(&params));
             match s.dispatch {
-                Dispatch::Plain => self.dispatch(pipeline, &group, (s.width.div_ceil(GROUP), s.height.div_ceil(GROUP)))?,
+                Dispatch::Plain => {
+                    self.dispatch(pipeline, &group, (s.width.div_ceil(GROUP), s.height.div_ceil(GROUP)))?
+                }
                 Dispatch::Persistent => {
                     self.queue.write_buffer(&work, 0, bytemuck::bytes_of(&[0u32; 4]));
                     self.dispatch(pipeline, &group, (persistent_groups, 1))?
@@ -324,9 +400,15 @@ impl Gpu {
         let scene = self.upload_scene(c)?;
         self.queue.write_buffer(&scene.params, 0, bytemuck::bytes_of(&c.bounds_params()));
         let ray_buffer = self.storage("rays", bytemuck::cast_slice(rays));
-        let result_bytes = std::mem::size_of_val(rays) as u64 / std::mem::size_of::<RayQuery>() as u64 * std::mem::size_of::<RayResult>() as u64;
+        let result_bytes = std::mem::size_of_val(rays) as u64 / std::mem::size_of::<RayQuery>() as u64
+            * std::mem::size_of::<RayResult>() as u64;
         let results = self.output("results", result_bytes);
-        let (accum, primary, work, accum_sq) = (self.output("accum (unused)", 0), self.output("primary (unused)", 0), self.output("work queue (unused)", 0), self.output("accum squares (unused)", 0));
+        let (accum, primary, work, accum_sq) = (
+            self.output("accum (unused)", 0),
+            self.output("primary (unused)", 0),
+            self.output("work queue (unused)", 0),
+            self.output("accum squares (unused)", 0),
+        );
         let group = self.bind(&scene, &accum, &primary, &ray_buffer, &results, &work, &accum_sq);
         let groups = rays.len().div_ceil(CAST_GROUP as usize);
         if groups > MAX_GROUPS_X as usize {
@@ -342,8 +424,14 @@ impl Gpu {
     }
 
     fn read_back<T: bytemuck::Pod>(&self, src: &wgpu::Buffer, size: u64) -> Result<Vec<T>> {
-        let staging = self.device.create_buffer(&wgpu::BufferDescriptor { label: Some("staging"), size, usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST, mapped_at_creation: false });
-        let mut encoder = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("read back") });
+        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("staging"),
+            size,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder =
+            self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("read back") });
         encoder.copy_buffer_to_buffer(src, 0, &staging, 0, size);
         self.queue.submit(Some(encoder.finish()));
         let slice = staging.slice(..);

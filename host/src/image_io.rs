@@ -28,7 +28,8 @@ pub fn is_exr(path: &Path) -> bool {
 /// maximum, for viewing as PNG: black, blue, magenta, orange, then white for the costliest
 /// pixel. The colours are linear RGB, so the PNG's sRGB encoding applies as usual.
 pub fn heat_map(cost: &[[f32; 3]]) -> Vec<[f32; 3]> {
-    const STOPS: [[f32; 3]; 5] = [[0.0, 0.0, 0.0], [0.0, 0.05, 0.6], [0.6, 0.0, 0.5], [1.0, 0.35, 0.0], [1.0, 1.0, 1.0]];
+    const STOPS: [[f32; 3]; 5] =
+        [[0.0, 0.0, 0.0], [0.0, 0.05, 0.6], [0.6, 0.0, 0.5], [1.0, 0.35, 0.0], [1.0, 1.0, 1.0]];
     let total = |p: &[f32; 3]| p[0] + p[1];
     let max = cost.iter().map(total).fold(0.0f32, f32::max);
     cost.iter()
@@ -50,7 +51,15 @@ pub fn write_image(path: &Path, width: u32, height: u32, rgb: &[[f32; 3]]) -> Re
     match ext.as_str() {
         "png" => {
             let bytes: Vec<u8> = rgb.iter().flat_map(|p| p.map(|c| (linear_to_srgb(c) * 255.0 + 0.5) as u8)).collect();
-            image::save_buffer_with_format(path, &bytes, width, height, image::ExtendedColorType::Rgb8, image::ImageFormat::Png).with_context(|| format!("{}: cannot write PNG", path.display()))
+            image::save_buffer_with_format(
+                path,
+                &bytes,
+                width,
+                height,
+                image::ExtendedColorType::Rgb8,
+                image::ImageFormat::Png,
+            )
+            .with_context(|| format!("{}: cannot write PNG", path.display()))
         }
         "exr" => exr::prelude::write_rgb_file(path, width as usize, height as usize, |x, y| {
             let p = rgb[y * width as usize + x];
@@ -123,7 +132,10 @@ pub fn read_pfm(path: &Path) -> Result<(u32, u32, Vec<[f32; 3]>)> {
     }
     let n = width as usize * height as usize;
     let need = n * channels * 4;
-    let data = bytes.get(pos..).filter(|d| d.len() >= need).ok_or_else(|| bad(&format!("{} bytes of pixel data, expected {need}", bytes.len().saturating_sub(pos))))?;
+    let data = bytes
+        .get(pos..)
+        .filter(|d| d.len() >= need)
+        .ok_or_else(|| bad(&format!("{} bytes of pixel data, expected {need}", bytes.len().saturating_sub(pos))))?;
     let value = |i: usize| {
         let b = [data[4 * i], data[4 * i + 1], data[4 * i + 2], data[4 * i + 3]];
         if scale < 0.0 {
@@ -138,7 +150,8 @@ pub fn read_pfm(path: &Path) -> Result<(u32, u32, Vec<[f32; 3]>)> {
         let row = height as usize - 1 - y;
         for x in 0..width as usize {
             let i = (y * width as usize + x) * channels;
-            pixels[row * width as usize + x] = if channels == 3 { [value(i), value(i + 1), value(i + 2)] } else { [value(i); 3] };
+            pixels[row * width as usize + x] =
+                if channels == 3 { [value(i), value(i + 1), value(i + 2)] } else { [value(i); 3] };
         }
     }
     Ok((width, height, pixels))

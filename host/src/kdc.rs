@@ -233,7 +233,11 @@ pub fn decode_from(path: &Path, input: &dyn ReadAt, len: u64) -> Result<KdcScene
         bail!("{name}: truncated: {len} bytes, the header says {}", payload_len.saturating_add(FIXED_HEADER as u64));
     }
     if payload_len < actual {
-        bail!("{name}: {} bytes after the end the header states ({} bytes)", actual - payload_len, payload_len + FIXED_HEADER as u64);
+        bail!(
+            "{name}: {} bytes after the end the header states ({} bytes)",
+            actual - payload_len,
+            payload_len + FIXED_HEADER as u64
+        );
     }
     if header_len > payload_len {
         bail!("{name}: header length {header_len} beyond the payload ({payload_len} bytes)");
@@ -247,12 +251,16 @@ pub fn decode_from(path: &Path, input: &dyn ReadAt, len: u64) -> Result<KdcScene
     hasher.update(&fixed[..24]);
     hasher.update(&json);
     let stored = u64_at(&fixed, 24);
-    let mismatch = |computed: u64| anyhow!("{name}: checksum mismatch (stored {stored:016x}, computed {computed:016x}): the file is corrupted");
+    let mismatch = |computed: u64| {
+        anyhow!("{name}: checksum mismatch (stored {stored:016x}, computed {computed:016x}): the file is corrupted")
+    };
     // The header is read before the checksum is known to match (the section counts are in it),
     // but nothing it says is trusted until the checksum has matched.
     let header: Option<Header> = serde_json::from_slice(&json).ok();
     let sections = match &header {
-        Some(h) if section_bytes(&h.counts) == Some(body_len) => Some(Sections::read(&h.counts, input, body_at).map_err(io)?),
+        Some(h) if section_bytes(&h.counts) == Some(body_len) => {
+            Some(Sections::read(&h.counts, input, body_at).map_err(io)?)
+        }
         _ => None,
     };
     let Some(sections) = sections else {
@@ -261,7 +269,8 @@ pub fn decode_from(path: &Path, input: &dyn ReadAt, len: u64) -> Result<KdcScene
             return Err(mismatch(hasher.digest()));
         }
         let header: Header = serde_json::from_slice(&json).map_err(|e| anyhow!("{name}: header: {e}"))?;
-        return Err(counts_error(&header.counts, body_len)).with_context(|| format!("{name}: invalid compiled scene (written by {})", header.writer));
+        return Err(counts_error(&header.counts, body_len))
+            .with_context(|| format!("{name}: invalid compiled scene (written by {})", header.writer));
     };
     let header = header.unwrap_or_else(|| unreachable!("sections are only read with a header"));
     // Validation only reads, and is safe on any bytes, so it runs beside the checksum; a
@@ -309,7 +318,9 @@ fn section_sizes(c: &Counts) -> [(&'static str, u64, usize); 6] {
 
 /// The bytes the sections take, or `None` when that overflows.
 fn section_bytes(c: &Counts) -> Option<u64> {
-    section_sizes(c).iter().try_fold(0u64, |total, &(_, count, size)| total.checked_add(count.checked_mul(size as u64)?))
+    section_sizes(c)
+        .iter()
+        .try_fold(0u64, |total, &(_, count, size)| total.checked_add(count.checked_mul(size as u64)?))
 }
 
 fn counts_error(c: &Counts, available: u64) -> anyhow::Error {
@@ -373,7 +384,13 @@ impl Sections {
     fn into_compiled(self, h: &Header) -> Compiled {
         let [lo, hi] = h.scene_bounds;
         let [tree_lo, tree_hi] = h.tree_bounds;
-        let tree = KdTree { nodes: self.nodes, indices: self.indices, bounds_min: Vec3::from(tree_lo), bounds_max: Vec3::from(tree_hi), depth: h.tree_depth };
+        let tree = KdTree {
+            nodes: self.nodes,
+            indices: self.indices,
+            bounds_min: Vec3::from(tree_lo),
+            bounds_max: Vec3::from(tree_hi),
+            depth: h.tree_depth,
+        };
         let scene = Scene {
             triangles: self.triangles,
             info: self.info,
@@ -409,7 +426,10 @@ fn validate(h: &Header, s: &Sections) -> Result<()> {
         bail!("scene origin {:?} is not finite", h.origin);
     }
     let (tree_lo, tree_hi) = bounds(h.tree_bounds, "tree")?;
-    let (tree, rest) = rayon::join(|| check_tree(&s.nodes, &s.indices, s.triangles.len(), tree_lo, tree_hi, h.tree_depth), || check_scene(h, s));
+    let (tree, rest) = rayon::join(
+        || check_tree(&s.nodes, &s.indices, s.triangles.len(), tree_lo, tree_hi, h.tree_depth),
+        || check_scene(h, s),
+    );
     rest.and(tree)
 }
 
@@ -451,7 +471,14 @@ fn check_scene(h: &Header, s: &Sections) -> Result<()> {
         if info.get(l.triangle as usize).map(|t| t.light) != Some(i as u32) {
             bail!("light {i}: triangle {} out of range or not pointing back to it", l.triangle);
         }
-        if !(l.pmf.is_finite() && l.pmf >= 0.0 && l.area.is_finite() && l.area > 0.0 && l.cdf.is_finite() && l.cdf >= previous_cdf && l.cdf <= 1.0) {
+        if !(l.pmf.is_finite()
+            && l.pmf >= 0.0
+            && l.area.is_finite()
+            && l.area > 0.0
+            && l.cdf.is_finite()
+            && l.cdf >= previous_cdf
+            && l.cdf <= 1.0)
+        {
             bail!("light {i}: pmf {}, cdf {}, area {} not a valid distribution entry", l.pmf, l.cdf, l.area);
         }
         previous_cdf = l.cdf;

@@ -74,11 +74,20 @@ pub fn load(path: &Path, settings: kdbuild::BuildSettings) -> Result<Loaded> {
     let (scene, scene_settings, mut warnings) = match kind {
         SceneKind::Kdc => {
             let k = kdc::read(path)?;
-            return Ok(Loaded { compiled: k.compiled, settings: k.settings, warnings: Vec::new(), kind, load_s: t0.elapsed().as_secs_f64(), build_s: 0.0, prepare_s: 0.0 });
+            return Ok(Loaded {
+                compiled: k.compiled,
+                settings: k.settings,
+                warnings: Vec::new(),
+                kind,
+                load_s: t0.elapsed().as_secs_f64(),
+                build_s: 0.0,
+                prepare_s: 0.0,
+            });
         }
         SceneKind::Obj => {
             let mesh = obj::load_mesh(path, &files::Disk)?;
-            let scene = scene::Scene::new(mesh.triangles, mesh.material_of, mesh.materials, mesh.material_names).map_err(|e| e.context(path.display().to_string()))?;
+            let scene = scene::Scene::new(mesh.triangles, mesh.material_of, mesh.materials, mesh.material_names)
+                .map_err(|e| e.context(path.display().to_string()))?;
             (scene, SceneSettings::default(), mesh.warnings)
         }
         SceneKind::Toml => {

@@ -81,7 +81,8 @@ mod tests {
     #[test]
     fn the_move_is_exact_for_every_coordinate() {
         // Dense coordinates across the range, and both ends of the factor-of-two window.
-        for (lo, hi) in [(100_000.0f32, 100_000.55f32), (1.0e5, 1.9e5), (1.5e6, 3.0e6), (-7.0e4, -4.0e4), (0.75, 1.25)] {
+        for (lo, hi) in [(100_000.0f32, 100_000.55f32), (1.0e5, 1.9e5), (1.5e6, 3.0e6), (-7.0e4, -4.0e4), (0.75, 1.25)]
+        {
             let s = axis_shift(lo, hi);
             assert_ne!(s, 0.0, "{lo}..{hi}");
             let mut x = lo;
@@ -107,7 +108,8 @@ mod tests {
             v1: Vec3::new(1e5 + 0.5, 2e5, -3e5).extend(0.0),
             v2: Vec3::new(1e5, 2e5 + 0.5, -3e5 + 0.25).extend(0.0),
         };
-        let scene = Scene::new(vec![t], vec![0], vec![crate::scene::diffuse(Vec3::ONE, Vec3::ZERO)], vec!["m".into()]).unwrap();
+        let scene =
+            Scene::new(vec![t], vec![0], vec![crate::scene::diffuse(Vec3::ONE, Vec3::ZERO)], vec!["m".into()]).unwrap();
         let (local, origin) = to_local(scene.clone());
         assert!(local.bounds_max.abs().max_element() < 1.0, "{:?}", local.bounds_max);
         for (a, b) in scene.triangles.iter().zip(&local.triangles) {

@@ -288,7 +288,11 @@ fn progress_bar(quiet: bool, label: &str) -> ProgressBar {
         return ProgressBar::hidden();
     }
     let bar = ProgressBar::new(1);
-    bar.set_style(ProgressStyle::with_template("{msg} [{bar:40}] {percent}% {elapsed_precise} eta {eta}").unwrap().progress_chars("=> "));
+    bar.set_style(
+        ProgressStyle::with_template("{msg} [{bar:40}] {percent}% {elapsed_precise} eta {eta}")
+            .unwrap()
+            .progress_chars("=> "),
+    );
     bar.set_message(label.to_string());
     bar
 }
@@ -388,9 +392,19 @@ fn verify(v: VerifyArgs) -> Result<ExitCode> {
     let (gpu_img, gpu_name, gpu_s) = run_device(Device::Gpu, c, &s, &v.image)?;
     let a = verify::compare(&cpu_img, &gpu_img);
     if v.image.json {
-        println!("{}", json!({ "scene": v.scene, "cpu": cpu_name, "adapter": gpu_name, "cpu_render_s": cpu_s, "gpu_render_s": gpu_s, "spp": s.spp, "width": s.width, "height": s.height, "agreement": a }));
+        println!(
+            "{}",
+            json!({ "scene": v.scene, "cpu": cpu_name, "adapter": gpu_name, "cpu_render_s": cpu_s, "gpu_render_s": gpu_s, "spp": s.spp, "width": s.width, "height": s.height, "agreement": a })
+        );
     } else {
-        println!("scene {} ({}x{}, {} spp, seed {}): CPU {cpu_name} {cpu_s:.3} s, GPU {gpu_name} {gpu_s:.3} s", v.scene.display(), s.width, s.height, s.spp, s.seed);
+        println!(
+            "scene {} ({}x{}, {} spp, seed {}): CPU {cpu_name} {cpu_s:.3} s, GPU {gpu_name} {gpu_s:.3} s",
+            v.scene.display(),
+            s.width,
+            s.height,
+            s.spp,
+            s.seed
+        );
         println!(
             "pixels within {:e} relative: {}/{} ({:.4}%), bit-identical {}; relMSE {:.3e}; max relative difference {:.3e}",
             verify::REL_TOLERANCE, a.pixels_within, a.pixels, 100.0 * a.pixel_share, a.bitwise_identical_pixels, a.relmse, a.max_rel_diff
@@ -427,7 +441,13 @@ fn tree(t: TreeArgs) -> Result<ExitCode> {
             loaded.build_s, rayon::current_num_threads(), st.triangles as f64 / loaded.build_s / 1e6
         );
         if let Some(v) = &valid {
-            println!("{}", match v { Ok(()) => "valid".to_string(), Err(e) => format!("INVALID: {e}") });
+            println!(
+                "{}",
+                match v {
+                    Ok(()) => "valid".to_string(),
+                    Err(e) => format!("INVALID: {e}"),
+                }
+            );
         }
     }
     Ok(if valid.is_some_and(|v| v.is_err()) { ExitCode::from(1) } else { ExitCode::SUCCESS })
@@ -443,7 +463,9 @@ fn rays(r: RaysArgs) -> Result<ExitCode> {
         Device::Gpu => Some(gpu::Gpu::open(r.image.adapter.as_deref())?),
         Device::Cpu => None,
     };
-    let adapter = g.as_ref().map_or_else(|| format!("cpu ({} threads)", rayon::current_num_threads()), |g| g.adapter.name.clone());
+    let adapter = g
+        .as_ref()
+        .map_or_else(|| format!("cpu ({} threads)", rayon::current_num_threads()), |g| g.adapter.name.clone());
     let traversal = s.traversal.resolve(g.as_ref().is_none_or(|g| g.is_cpu()));
     let mut primary_rate = None;
     for kind in [RayKind::Primary, RayKind::Ao, RayKind::Diffuse] {
@@ -452,7 +474,13 @@ fn rays(r: RaysArgs) -> Result<ExitCode> {
         let primary = primary_rate.get_or_insert_with(|| t.clone());
         // K_I prices a leaf test of `leaf_block` triangles; the counts are of triangles.
         let per_triangle = build.intersection_cost as f64 / build.leaf_block.max(1) as f64;
-        let ideal = Some(ideal_mrays_per_s(primary, t.nodes_per_ray, t.tests_per_ray, build.traversal_cost as f64, per_triangle));
+        let ideal = Some(ideal_mrays_per_s(
+            primary,
+            t.nodes_per_ray,
+            t.tests_per_ray,
+            build.traversal_cost as f64,
+            per_triangle,
+        ));
         if r.image.json {
             let mut line = serde_json::to_value(&t)?;
             let extra = json!({
@@ -486,10 +514,14 @@ fn export(e: ExportArgs) -> Result<ExitCode> {
         anyhow::bail!("{}: export writes a .toml scene file", e.out.display());
     }
     let file = match SceneKind::of(&e.scene)? {
-        SceneKind::Kdc => anyhow::bail!("{}: a compiled scene keeps no mesh files and cannot be exported; export the scene it was compiled from", e.scene.display()),
+        SceneKind::Kdc => anyhow::bail!(
+            "{}: a compiled scene keeps no mesh files and cannot be exported; export the scene it was compiled from",
+            e.scene.display()
+        ),
         SceneKind::Obj => scene_file::for_obj(&e.scene),
         SceneKind::Toml => {
-            let text = std::fs::read_to_string(&e.scene).map_err(|err| anyhow::anyhow!("{}: cannot read: {err}", e.scene.display()))?;
+            let text = std::fs::read_to_string(&e.scene)
+                .map_err(|err| anyhow::anyhow!("{}: cannot read: {err}", e.scene.display()))?;
             scene_file::parse(&e.scene, &text)?
         }
     };
@@ -500,7 +532,10 @@ fn export(e: ExportArgs) -> Result<ExitCode> {
     let resolved = loaded.settings.resolve(lo, hi)?;
     let mut file = scene_file::with_settings(file, &SceneSettings::pinned(&resolved, loaded.settings.time_limit_s))?;
     scene_file::rebase_meshes(&mut file, &e.scene, &e.out)?;
-    let comment = format!("kdtrace scene file, written by `kdtrace export` from {}.\nSchema: README.md, \"Scene files\".", e.scene.display());
+    let comment = format!(
+        "kdtrace scene file, written by `kdtrace export` from {}.\nSchema: README.md, \"Scene files\".",
+        e.scene.display()
+    );
     let text = scene_file::to_toml(&file, &comment)?;
     std::fs::write(&e.out, text).map_err(|err| anyhow::anyhow!("{}: cannot write: {err}", e.out.display()))?;
     eprintln!("{}: {} meshes, {} triangles", e.out.display(), file.meshes.len(), c.scene.triangles.len());
@@ -530,9 +565,19 @@ fn compile(a: CompileArgs) -> Result<ExitCode> {
     let c = &loaded.compiled;
     let bytes = std::fs::metadata(&a.out).map(|m| m.len()).unwrap_or(0);
     if a.json {
-        println!("{}", json!({ "scene": a.scene, "out": a.out, "triangles": c.scene.triangles.len(), "nodes": c.tree.nodes.len(), "bytes": bytes, "load_s": loaded.load_s, "build_s": loaded.build_s, "prepare_s": loaded.prepare_s, "write_s": write_s }));
+        println!(
+            "{}",
+            json!({ "scene": a.scene, "out": a.out, "triangles": c.scene.triangles.len(), "nodes": c.tree.nodes.len(), "bytes": bytes, "load_s": loaded.load_s, "build_s": loaded.build_s, "prepare_s": loaded.prepare_s, "write_s": write_s })
+        );
     } else {
-        eprintln!("{}: {} triangles, {} nodes, {bytes} bytes (load {:.3} s, build {:.3} s, write {write_s:.3} s)", a.out.display(), c.scene.triangles.len(), c.tree.nodes.len(), loaded.load_s, loaded.build_s);
+        eprintln!(
+            "{}: {} triangles, {} nodes, {bytes} bytes (load {:.3} s, build {:.3} s, write {write_s:.3} s)",
+            a.out.display(),
+            c.scene.triangles.len(),
+            c.tree.nodes.len(),
+            loaded.load_s,
+            loaded.build_s
+        );
     }
     Ok(ExitCode::SUCCESS)
 }
@@ -545,14 +590,30 @@ fn compare(a: CompareArgs) -> Result<ExitCode> {
     };
     let (r, t) = (read(&a.reference)?, read(&a.test)?);
     if (r.width, r.height) != (t.width, t.height) {
-        anyhow::bail!("{} is {}x{} but {} is {}x{}: images of different sizes", a.reference.display(), r.width, r.height, a.test.display(), t.width, t.height);
+        anyhow::bail!(
+            "{} is {}x{} but {} is {}x{}: images of different sizes",
+            a.reference.display(),
+            r.width,
+            r.height,
+            a.test.display(),
+            t.width,
+            t.height
+        );
     }
     let e = errors(&r, &t)?;
     let test = match (&a.variance, a.spp) {
         (Some(v), Some(spp)) => {
             let variance = read(v)?;
             if (variance.width, variance.height) != (t.width, t.height) {
-                anyhow::bail!("{} is {}x{} but {} is {}x{}: images of different sizes", v.display(), variance.width, variance.height, a.test.display(), t.width, t.height);
+                anyhow::bail!(
+                    "{} is {}x{} but {} is {}x{}: images of different sizes",
+                    v.display(),
+                    variance.width,
+                    variance.height,
+                    a.test.display(),
+                    t.width,
+                    t.height
+                );
             }
             let count = vec![spp; t.pixels.len()];
             Some(pixel_test(&r, &PixelStats { mean: t.clone(), variance, count }, 0.01)?)
@@ -561,13 +622,21 @@ fn compare(a: CompareArgs) -> Result<ExitCode> {
     };
     if a.json {
         let mut line = serde_json::to_value(&e)?;
-        line.as_object_mut().unwrap().extend([("reference".to_string(), json!(a.reference)), ("test".to_string(), json!(a.test)), ("pixel_test".to_string(), json!(test))]);
+        line.as_object_mut().unwrap().extend([
+            ("reference".to_string(), json!(a.reference)),
+            ("test".to_string(), json!(a.test)),
+            ("pixel_test".to_string(), json!(test)),
+        ]);
         println!("{line}");
     } else {
         if let Some(p) = &test {
             println!(
                 "per-pixel test (Šidák, α = 0.01): {} of {} channel values rejected at {:.3e}, smallest p {:.3e}{}: {}",
-                p.rejected, p.tests, p.per_test_alpha, p.min_p, p.worst.map_or(String::new(), |(x, y, k)| format!(" at ({x}, {y}) channel {k}")),
+                p.rejected,
+                p.tests,
+                p.per_test_alpha,
+                p.min_p,
+                p.worst.map_or(String::new(), |(x, y, k)| format!(" at ({x}, {y}) channel {k}")),
                 if p.pass { "consistent" } else { "INCONSISTENT" }
             );
         }

@@ -228,7 +228,12 @@ pub fn pixel_test(reference: &LinearImage, stats: &PixelStats, alpha: f64) -> Re
     let mut untested = 0;
     for (i, r) in reference.pixels.iter().enumerate() {
         for k in 0..3 {
-            match mean_test(r[k] as f64, stats.mean.pixels[i][k] as f64, stats.variance.pixels[i][k] as f64, stats.count[i]) {
+            match mean_test(
+                r[k] as f64,
+                stats.mean.pixels[i][k] as f64,
+                stats.variance.pixels[i][k] as f64,
+                stats.count[i],
+            ) {
                 Some(p) => ps.push((p, i, k)),
                 None => untested += 1,
             }
@@ -312,7 +317,8 @@ mod tests {
     use super::*;
 
     fn img(w: u32, h: u32, f: impl Fn(u32, u32) -> [f32; 3]) -> LinearImage {
-        LinearImage::new(w, h, (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).map(|(x, y)| f(x, y)).collect()).unwrap()
+        LinearImage::new(w, h, (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).map(|(x, y)| f(x, y)).collect())
+            .unwrap()
     }
 
     #[test]
@@ -376,7 +382,16 @@ mod tests {
     #[test]
     fn flip_grows_with_the_error() {
         let r = img(32, 32, |x, y| [((x / 4 + y / 4) % 2) as f32 * 0.8; 3]);
-        let f = |a: f32| flip(&r, &img(32, 32, |x, y| r.pixels[(y * 32 + x) as usize].map(|c| c + a * (((x * 7 + y * 13) % 5) as f32 / 5.0 - 0.4))), 67.0).unwrap();
+        let f = |a: f32| {
+            flip(
+                &r,
+                &img(32, 32, |x, y| {
+                    r.pixels[(y * 32 + x) as usize].map(|c| c + a * (((x * 7 + y * 13) % 5) as f32 / 5.0 - 0.4))
+                }),
+                67.0,
+            )
+            .unwrap()
+        };
         let (f1, f2, f3) = (f(0.02), f(0.1), f(0.4));
         assert!(0.0 < f1 && f1 < f2 && f2 < f3 && f3 <= 1.0, "{f1} {f2} {f3}");
     }
@@ -422,7 +437,11 @@ mod tests {
                 *c += (0..n).map(|_| rng.random::<f32>() - 0.5).sum::<f32>() / n as f32;
             }
         }
-        let stats = |mean: LinearImage| PixelStats { variance: img(w, h, |_, _| [1.0 / 12.0; 3]), count: vec![n; (w * h) as usize], mean };
+        let stats = |mean: LinearImage| PixelStats {
+            variance: img(w, h, |_, _| [1.0 / 12.0; 3]),
+            count: vec![n; (w * h) as usize],
+            mean,
+        };
         let ok = pixel_test(&reference, &stats(means.clone()), 0.01).unwrap();
         assert!(ok.pass && ok.tests == 3072 && ok.rejected == 0, "{ok:?}");
         // One channel 8 standard errors off (σ/√n = 0.036): p ≈ 1e-11 < 3.3e-6.

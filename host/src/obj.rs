@@ -72,7 +72,11 @@ fn scan_lines(path: &Path, text: &str) -> Result<Scan> {
                     let v = corner.split('/').next().unwrap_or("");
                     let Ok(i) = v.parse::<i64>() else { continue };
                     if i == 0 || i > vertices || i < -vertices {
-                        bail!("{}:{}: face vertex index {i} out of range ({vertices} vertices defined above)", path.display(), number + 1);
+                        bail!(
+                            "{}:{}: face vertex index {i} out of range ({vertices} vertices defined above)",
+                            path.display(),
+                            number + 1
+                        );
                     }
                 }
                 continue;
@@ -133,7 +137,8 @@ fn without_points_and_lines(text: &str) -> String {
 /// Loads an OBJ file as a scene of its own.
 pub fn load_obj(path: &Path) -> Result<Scene> {
     let mesh = load_mesh(path, &Disk)?;
-    Scene::new(mesh.triangles, mesh.material_of, mesh.materials, mesh.material_names).with_context(|| format!("{}", path.display()))
+    Scene::new(mesh.triangles, mesh.material_of, mesh.materials, mesh.material_names)
+        .with_context(|| format!("{}", path.display()))
 }
 
 /// Reads and parses an OBJ file and the MTL libraries it names.
@@ -187,13 +192,24 @@ pub fn parse_mesh(path: &Path, bytes: &[u8], files: &dyn Files) -> Result<Mesh> 
         }
         result
     };
-    let options = tobj::LoadOptions { triangulate: true, single_index: false, ignore_points: true, ignore_lines: true, ..Default::default() };
-    let (models, materials) = tobj::load_obj_buf(&mut Cursor::new(text.as_bytes()), &options, loader).map_err(|e| anyhow!("{}: {e}", path.display()))?;
+    let options = tobj::LoadOptions {
+        triangulate: true,
+        single_index: false,
+        ignore_points: true,
+        ignore_lines: true,
+        ..Default::default()
+    };
+    let (models, materials) = tobj::load_obj_buf(&mut Cursor::new(text.as_bytes()), &options, loader)
+        .map_err(|e| anyhow!("{}: {e}", path.display()))?;
     if let Some(e) = problems.into_inner().into_iter().next() {
         return Err(e.context(format!("{}: loading its material libraries", path.display())));
     }
     for m in missing.into_inner() {
-        warnings.push(format!("{}: material library not found ({}); its materials are grey diffuse", path.display(), m.display()));
+        warnings.push(format!(
+            "{}: material library not found ({}); its materials are grey diffuse",
+            path.display(),
+            m.display()
+        ));
     }
     // A library that failed to open leaves `Err` here only when no other library loaded.
     let mtl = materials.unwrap_or_default();
@@ -213,7 +229,14 @@ pub fn parse_mesh(path: &Path, bytes: &[u8], files: &dyn Files) -> Result<Mesh> 
                 bail!("{}: material {:?}: {what} {v:?} must be finite and non-negative", library.display(), m.name);
             }
         }
-        let maps = [&m.diffuse_texture, &m.ambient_texture, &m.specular_texture, &m.normal_texture, &m.shininess_texture, &m.dissolve_texture];
+        let maps = [
+            &m.diffuse_texture,
+            &m.ambient_texture,
+            &m.specular_texture,
+            &m.normal_texture,
+            &m.shininess_texture,
+            &m.dissolve_texture,
+        ];
         for value in maps.into_iter().flatten() {
             let Some(file) = texture_file(value) else { continue };
             let full = library.parent().unwrap_or(Path::new("")).join(file);
@@ -226,7 +249,10 @@ pub fn parse_mesh(path: &Path, bytes: &[u8], files: &dyn Files) -> Result<Mesh> 
         names.push(m.name.clone());
     }
     if textures > 0 {
-        warnings.push(format!("{}: {textures} texture maps ignored (textures are not supported yet; Kd is used)", path.display()));
+        warnings.push(format!(
+            "{}: {textures} texture maps ignored (textures are not supported yet; Kd is used)",
+            path.display()
+        ));
     }
     let default_material = mats.len() as u32;
     mats.push(diffuse(Vec3::splat(DEFAULT_ALBEDO), Vec3::ZERO));
@@ -244,7 +270,13 @@ pub fn parse_mesh(path: &Path, bytes: &[u8], files: &dyn Files) -> Result<Mesh> 
             let i = i as usize;
             match mesh.positions.get(3 * i..3 * i + 3) {
                 Some(p) => Ok(Vec4::new(p[0], p[1], p[2], 0.0)),
-                None => bail!("{}: object {:?}: vertex index {} out of range ({} vertices)", path.display(), model.name, i + 1, mesh.positions.len() / 3),
+                None => bail!(
+                    "{}: object {:?}: vertex index {} out of range ({} vertices)",
+                    path.display(),
+                    model.name,
+                    i + 1,
+                    mesh.positions.len() / 3
+                ),
             }
         };
         for f in mesh.indices.chunks_exact(3) {
@@ -256,7 +288,11 @@ pub fn parse_mesh(path: &Path, bytes: &[u8], files: &dyn Files) -> Result<Mesh> 
         bail!("{}: no triangles", path.display());
     }
     if scan.skipped_elements > 0 {
-        warnings.push(format!("{}: {} point and line elements skipped (only faces are rendered)", path.display(), scan.skipped_elements));
+        warnings.push(format!(
+            "{}: {} point and line elements skipped (only faces are rendered)",
+            path.display(),
+            scan.skipped_elements
+        ));
     }
     Ok(Mesh { triangles, material_of, materials: mats, material_names: names, warnings })
 }

@@ -68,27 +68,58 @@ pub fn staircase(steps: u32, width: u32) -> Result<Scene> {
 /// One emissive square of side 2 at z = 0 (front facing +z when `facing_camera`) with radiance
 /// `emission`, for checking one-sided emission against its analytic value.
 pub fn emitter(emission: Vec3, facing_camera: bool) -> Result<Scene> {
-    let (a, b, c, d) = (Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 0.0), Vec3::new(-1.0, 1.0, 0.0));
+    let (a, b, c, d) =
+        (Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 0.0), Vec3::new(-1.0, 1.0, 0.0));
     let tris: Vec<Triangle> = if facing_camera { quad(a, b, c, d).to_vec() } else { quad(d, c, b, a).to_vec() };
     Scene::new(tris, vec![0; 2], vec![diffuse(Vec3::splat(0.5), emission)], vec!["emitter".into()])
 }
-
 
 /// A closed, watertight sphere of radius 1 at the origin: an icosahedron whose faces are split
 /// into four `subdivisions` times, new vertices pushed onto the sphere (20·4^s triangles). Every
 /// edge is shared by exactly two triangles through the very same vertex values, fronts outward.
 pub fn icosphere(subdivisions: u32) -> Vec<Triangle> {
     let t = (1.0 + 5.0f64.sqrt()) / 2.0;
-    let mut verts: Vec<[f64; 3]> = [[-1.0, t, 0.0], [1.0, t, 0.0], [-1.0, -t, 0.0], [1.0, -t, 0.0], [0.0, -1.0, t], [0.0, 1.0, t], [0.0, -1.0, -t], [0.0, 1.0, -t], [t, 0.0, -1.0], [t, 0.0, 1.0], [-t, 0.0, -1.0], [-t, 0.0, 1.0]]
-        .iter()
-        .map(|v| {
-            let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-            [v[0] / l, v[1] / l, v[2] / l]
-        })
-        .collect();
+    let mut verts: Vec<[f64; 3]> = [
+        [-1.0, t, 0.0],
+        [1.0, t, 0.0],
+        [-1.0, -t, 0.0],
+        [1.0, -t, 0.0],
+        [0.0, -1.0, t],
+        [0.0, 1.0, t],
+        [0.0, -1.0, -t],
+        [0.0, 1.0, -t],
+        [t, 0.0, -1.0],
+        [t, 0.0, 1.0],
+        [-t, 0.0, -1.0],
+        [-t, 0.0, 1.0],
+    ]
+    .iter()
+    .map(|v| {
+        let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        [v[0] / l, v[1] / l, v[2] / l]
+    })
+    .collect();
     let mut faces: Vec<[usize; 3]> = vec![
-        [0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4], [11, 10, 2], [10, 7, 6], [7, 1, 8],
-        [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1],
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
     ];
     for _ in 0..subdivisions {
         let mut midpoint = std::collections::HashMap::new();

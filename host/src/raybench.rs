@@ -66,7 +66,8 @@ pub fn make_rays(c: &Compiled, s: &RenderSettings, kind: RayKind, traversal: Tra
             let n = unit_normal(tri);
             let n = if dot(n, d) < 0.0 { n } else { -n };
             let (u1, u2) = Sampler::new(SAMPLER_INDEPENDENT, i as u32, 0, 0x5eed).next_2d();
-            let wi = sample_bsdf(&c.scene.materials[c.scene.info[hit.triangle as usize].material as usize], n, u1, u2).wi;
+            let wi =
+                sample_bsdf(&c.scene.materials[c.scene.info[hit.triangle as usize].material as usize], n, u1, u2).wi;
             let o = offset_ray_origin(surface.p, surface.error, n);
             Some(match kind {
                 RayKind::Ao => query(o, wi, AO_LENGTH * diagonal, flags | RAY_ANY_HIT),
@@ -94,7 +95,13 @@ pub struct Throughput {
 }
 
 /// Casts `rays` `repeats` times (after one warm-up) and keeps the fastest run.
-pub fn measure(c: &Compiled, gpu: Option<&Gpu>, kind: RayKind, rays: &[RayQuery], repeats: usize) -> Result<(Throughput, Vec<RayResult>)> {
+pub fn measure(
+    c: &Compiled,
+    gpu: Option<&Gpu>,
+    kind: RayKind,
+    rays: &[RayQuery],
+    repeats: usize,
+) -> Result<(Throughput, Vec<RayResult>)> {
     if rays.is_empty() {
         bail!("no {kind:?} rays: the camera sees no geometry");
     }
@@ -136,9 +143,16 @@ pub fn measure(c: &Compiled, gpu: Option<&Gpu>, kind: RayKind, rays: &[RayQuery]
 /// work, K_T per node step and K_I per triangle test (`BuildSettings`). Aila & Laine's simulated
 /// upper bound assumes ideal SIMD and memory behaviour; this is our measurable stand-in, the rate
 /// every kind would reach if it did its work as efficiently as primary rays do.
-pub fn ideal_mrays_per_s(primary: &Throughput, nodes_per_ray: f64, tests_per_ray: f64, traversal_cost: f64, intersection_cost: f64) -> f64 {
+pub fn ideal_mrays_per_s(
+    primary: &Throughput,
+    nodes_per_ray: f64,
+    tests_per_ray: f64,
+    traversal_cost: f64,
+    intersection_cost: f64,
+) -> f64 {
     let work = |n: f64, t: f64| traversal_cost * n + intersection_cost * t;
-    primary.mrays_per_s * work(primary.nodes_per_ray, primary.tests_per_ray) / work(nodes_per_ray, tests_per_ray).max(f64::MIN_POSITIVE)
+    primary.mrays_per_s * work(primary.nodes_per_ray, primary.tests_per_ray)
+        / work(nodes_per_ray, tests_per_ray).max(f64::MIN_POSITIVE)
 }
 
 #[cfg(test)]
@@ -147,7 +161,16 @@ mod tests {
 
     #[test]
     fn ideal_rate_scales_the_primary_rate_by_sah_work() {
-        let primary = Throughput { kind: RayKind::Primary, rays: 1, hits: 1, seconds: 1.0, mrays_per_s: 10.0, nodes_per_ray: 20.0, tests_per_ray: 3.0, restarts_per_ray: 0.0 };
+        let primary = Throughput {
+            kind: RayKind::Primary,
+            rays: 1,
+            hits: 1,
+            seconds: 1.0,
+            mrays_per_s: 10.0,
+            nodes_per_ray: 20.0,
+            tests_per_ray: 3.0,
+            restarts_per_ray: 0.0,
+        };
         // Same work: same rate. Twice the work (in K_T·nodes + K_I·tests): half the rate.
         assert!((ideal_mrays_per_s(&primary, 20.0, 3.0, 15.0, 20.0) - 10.0).abs() < 1e-12);
         let twice = ideal_mrays_per_s(&primary, 40.0, 6.0, 15.0, 20.0);

@@ -5,9 +5,12 @@ use crate::kdbuild::KdTree;
 use crate::local_frame::{point_to_local, point_to_world};
 use crate::scene::Scene;
 use anyhow::{bail, Result};
-use shared::glam::{Vec3, Vec4};
 use rayon::prelude::*;
-use shared::layout::{Light, RenderParams, TriBlock, Triangle, AOV_COST, AOV_RADIANCE, BLOCK_WIDTH, TRAVERSAL_FULL_STACK, TRAVERSAL_SHORT_STACK};
+use shared::glam::{Vec3, Vec4};
+use shared::layout::{
+    Light, RenderParams, TriBlock, Triangle, AOV_COST, AOV_RADIANCE, BLOCK_WIDTH, TRAVERSAL_FULL_STACK,
+    TRAVERSAL_SHORT_STACK,
+};
 use shared::rng::{SAMPLER_INDEPENDENT, SAMPLER_SOBOL};
 use shared::scene::SceneView;
 
@@ -225,7 +228,16 @@ impl Compiled {
     }
 
     pub fn view<'a>(&'a self, params: &RenderParams) -> SceneView<'a> {
-        SceneView::new(params, &self.tree.nodes, &self.tree.indices, &self.blocks, &self.scene.triangles, &self.scene.info, &self.scene.materials, &self.lights)
+        SceneView::new(
+            params,
+            &self.tree.nodes,
+            &self.tree.indices,
+            &self.blocks,
+            &self.scene.triangles,
+            &self.scene.info,
+            &self.scene.materials,
+            &self.lights,
+        )
     }
 }
 
@@ -276,7 +288,13 @@ impl Rendered {
             .iter()
             .zip(&self.sum_sq)
             .map(|(s, q)| {
-                let v = |a: f32, b: f32| if n < 2.0 { 0.0 } else { ((b as f64 - (a as f64) * (a as f64) / n) / (n - 1.0)).max(0.0) as f32 };
+                let v = |a: f32, b: f32| {
+                    if n < 2.0 {
+                        0.0
+                    } else {
+                        ((b as f64 - (a as f64) * (a as f64) / n) / (n - 1.0)).max(0.0) as f32
+                    }
+                };
                 [v(s.x, q.x), v(s.y, q.y), v(s.z, q.z)]
             })
             .collect()

@@ -33,7 +33,12 @@ impl Scene {
     /// Assembles a scene from triangles with a material index each. Zero-area triangles are
     /// dropped (and counted); emissive triangles become lights picked in proportion to their
     /// power (area × luminance of the emitted radiance).
-    pub fn new(triangles: Vec<Triangle>, material_of: Vec<u32>, materials: Vec<Material>, material_names: Vec<String>) -> Result<Self> {
+    pub fn new(
+        triangles: Vec<Triangle>,
+        material_of: Vec<u32>,
+        materials: Vec<Material>,
+        material_names: Vec<String>,
+    ) -> Result<Self> {
         if triangles.len() != material_of.len() {
             bail!("{} triangles but {} material indices", triangles.len(), material_of.len());
         }
@@ -92,6 +97,15 @@ impl Scene {
             lo = Vec3::ZERO;
             hi = Vec3::ZERO;
         }
-        Ok(Self { triangles: kept, info, materials, material_names, lights, bounds_min: lo, bounds_max: hi, dropped_degenerate: dropped })
+        Ok(Self {
+            triangles: kept,
+            info,
+            materials,
+            material_names,
+            lights,
+            bounds_min: lo,
+            bounds_max: hi,
+            dropped_degenerate: dropped,
+        })
     }
 }

@@ -335,7 +335,9 @@ impl TryFrom<String> for MaterialKind {
     fn try_from(s: String) -> Result<Self, String> {
         match s.as_str() {
             "diffuse" => Ok(MaterialKind::Diffuse),
-            r if RESERVED_MATERIALS.contains(&r) => Err(format!("material type {r:?} is not supported yet (reserved for the physically based materials to come)")),
+            r if RESERVED_MATERIALS.contains(&r) => Err(format!(
+                "material type {r:?} is not supported yet (reserved for the physically based materials to come)"
+            )),
             other => Err(format!("unknown material type {other:?} (expected \"diffuse\")")),
         }
     }
@@ -385,7 +387,8 @@ pub struct Resolved {
 /// Reads a scene file and every mesh it names.
 pub fn load(path: &Path, files: &dyn Files) -> Result<Resolved> {
     let bytes = files.read(path).map_err(|e| anyhow!("{}: cannot read: {e}", path.display()))?;
-    let text = std::str::from_utf8(&bytes).map_err(|e| anyhow!("{}: not UTF-8 text (byte {})", path.display(), e.valid_up_to()))?;
+    let text = std::str::from_utf8(&bytes)
+        .map_err(|e| anyhow!("{}: not UTF-8 text (byte {})", path.display(), e.valid_up_to()))?;
     let file = parse(path, text)?;
     resolve(path, text, &file, files)
 }
@@ -412,7 +415,10 @@ pub fn settings_of(file: &SceneFile) -> SceneSettings {
 
 fn scene_material(m: &MaterialSection) -> Material {
     match m.kind {
-        MaterialKind::Diffuse => diffuse(m.albedo.map_or(Vec3::splat(DEFAULT_ALBEDO), |a| vec3_of(a.0)), m.emission.map_or(Vec3::ZERO, |e| vec3_of(e.0))),
+        MaterialKind::Diffuse => diffuse(
+            m.albedo.map_or(Vec3::splat(DEFAULT_ALBEDO), |a| vec3_of(a.0)),
+            m.emission.map_or(Vec3::ZERO, |e| vec3_of(e.0)),
+        ),
     }
 }
 
@@ -444,7 +450,12 @@ pub fn resolve(path: &Path, text: &str, file: &SceneFile, files: &dyn Files) -> 
     let lookup = |name: &Spanned<String>| -> Result<u32> {
         index_of.get(name.get_ref().as_str()).copied().ok_or_else(|| {
             let known: Vec<&str> = index_of.keys().copied().collect();
-            anyhow!("{}: no material named {:?} in [materials] (defined: {})", at(name.span()), name.get_ref(), if known.is_empty() { "none".into() } else { known.join(", ") })
+            anyhow!(
+                "{}: no material named {:?} in [materials] (defined: {})",
+                at(name.span()),
+                name.get_ref(),
+                if known.is_empty() { "none".into() } else { known.join(", ") }
+            )
         })
     };
     let mut triangles = Vec::new();
@@ -452,7 +463,8 @@ pub fn resolve(path: &Path, text: &str, file: &SceneFile, files: &dyn Files) -> 
     let mut warnings = Vec::new();
     for m in &file.meshes {
         let mesh_path = dir.join(m.file.get_ref());
-        let mesh = obj::load_mesh(&mesh_path, files).with_context(|| format!("{}: mesh {:?}", at(m.file.span()), m.file.get_ref()))?;
+        let mesh = obj::load_mesh(&mesh_path, files)
+            .with_context(|| format!("{}: mesh {:?}", at(m.file.span()), m.file.get_ref()))?;
         let whole = m.material.as_ref().map(&lookup).transpose()?;
         let mut by_name = BTreeMap::new();
         for (mtl_name, target) in &m.materials {
@@ -484,7 +496,12 @@ pub fn resolve(path: &Path, text: &str, file: &SceneFile, files: &dyn Files) -> 
         for t in &placed {
             for v in [t.v0, t.v1, t.v2] {
                 if !v.is_finite() || v.abs().max_element() > MAX_COORDINATE {
-                    bail!("{}: mesh {:?}: placed vertex {} is not finite or beyond ±{MAX_COORDINATE:e}", at(m.file.span()), m.file.get_ref(), v.truncate());
+                    bail!(
+                        "{}: mesh {:?}: placed vertex {} is not finite or beyond ±{MAX_COORDINATE:e}",
+                        at(m.file.span()),
+                        m.file.get_ref(),
+                        v.truncate()
+                    );
                 }
             }
         }
@@ -568,7 +585,11 @@ pub fn with_settings(mut file: SceneFile, s: &SceneSettings) -> Result<SceneFile
         sampler: s.sampler,
         time_limit: s.time_limit_s.map(Seconds::try_from).transpose().map_err(|e| anyhow!(e))?,
     };
-    file.environment = s.environment.map(|v| Color::try_from([tidy(v[0]), tidy(v[1]), tidy(v[2])])).transpose().map_err(|e| anyhow!(e))?;
+    file.environment = s
+        .environment
+        .map(|v| Color::try_from([tidy(v[0]), tidy(v[1]), tidy(v[2])]))
+        .transpose()
+        .map_err(|e| anyhow!(e))?;
     Ok(file)
 }
 

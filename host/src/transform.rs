@@ -71,7 +71,11 @@ mod tests {
 
     #[test]
     fn order_is_scale_rotate_translate() {
-        let p = Placement { scale: Vec3::new(2.0, 1.0, 1.0), rotate_deg: Vec3::new(0.0, 0.0, 90.0), translate: Vec3::new(0.0, 0.0, 5.0) };
+        let p = Placement {
+            scale: Vec3::new(2.0, 1.0, 1.0),
+            rotate_deg: Vec3::new(0.0, 0.0, 90.0),
+            translate: Vec3::new(0.0, 0.0, 5.0),
+        };
         // (1,0,0) → scale (2,0,0) → 90° about z (0,2,0) → translate (0,2,5).
         let q = p.matrix().transform_point3(Vec3::X);
         assert!((q - Vec3::new(0.0, 2.0, 5.0)).length() < 1e-5, "{q:?}");
@@ -87,7 +91,11 @@ mod tests {
 
     #[test]
     fn mirroring_swaps_winding_so_the_front_follows_the_mirror() {
-        let t = Triangle { v0: Vec4::new(0.0, 0.0, 0.0, 0.0), v1: Vec4::new(1.0, 0.0, 0.0, 0.0), v2: Vec4::new(0.0, 1.0, 0.0, 0.0) };
+        let t = Triangle {
+            v0: Vec4::new(0.0, 0.0, 0.0, 0.0),
+            v1: Vec4::new(1.0, 0.0, 0.0, 0.0),
+            v2: Vec4::new(0.0, 1.0, 0.0, 0.0),
+        };
         let normal = |t: &Triangle| (t.v1 - t.v0).truncate().cross((t.v2 - t.v0).truncate());
         assert!(normal(&t).z > 0.0);
         let mut tris = [t];

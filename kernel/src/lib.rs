@@ -73,7 +73,12 @@ pub fn render_persistent(
         round += 1;
         if lane == 0 {
             // QueueFamily scope: Device scope needs a capability naga rejects.
-            *batch = unsafe { atomic_i_add::<u32, { Scope::QueueFamily as u32 }, { Semantics::NONE.bits() }>(&mut queue[0], PERSISTENT_GROUP) };
+            *batch = unsafe {
+                atomic_i_add::<u32, { Scope::QueueFamily as u32 }, { Semantics::NONE.bits() }>(
+                    &mut queue[0],
+                    PERSISTENT_GROUP,
+                )
+            };
         }
         workgroup_memory_barrier_with_group_sync();
         let base = *batch;

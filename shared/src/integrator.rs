@@ -7,10 +7,10 @@
 use crate::camera::primary_direction;
 use crate::glam::{Vec3, Vec4};
 use crate::kdtree::Hit;
-use crate::raycast::{any, closest};
 use crate::layout::{RenderParams, AOV_COST, NO_HIT, NO_LIGHT};
 use crate::material::{emitted, eval, sample as sample_bsdf};
 use crate::numerics::{offset_ray_origin, sanitize_radiance};
+use crate::raycast::{any, closest};
 use crate::rng::Sampler;
 use crate::sampling::{power_heuristic, remap_in_light, select_light, uniform_triangle};
 use crate::scene::SceneView;
@@ -176,7 +176,15 @@ fn shade_vertex(scene: &SceneView, p: &RenderParams, path: &mut Path, rng: &mut 
 /// `sum_sq.xyz` the squared radiance, for the per-pixel variance (`sum_sq.w` unused). When the
 /// pass holds sample 0, `primary` gets the triangle its camera ray hit first. What every renderer
 /// (the CPU rows, both GPU kernels) does per pixel and pass.
-pub fn render_pixel(scene: &SceneView, p: &RenderParams, x: u32, y: u32, sum: &mut Vec4, sum_sq: &mut Vec4, primary: &mut u32) {
+pub fn render_pixel(
+    scene: &SceneView,
+    p: &RenderParams,
+    x: u32,
+    y: u32,
+    sum: &mut Vec4,
+    sum_sq: &mut Vec4,
+    primary: &mut u32,
+) {
     let mut acc = *sum;
     let mut acc_sq = *sum_sq;
     let mut s = p.sample_start;

@@ -12,9 +12,9 @@
 //! triangle returns (`intersect_brute_force`), bit for bit, because every triangle test performs
 //! the operations of `RayShear::intersect` (the CPU's eight-lane `intersect_block` lane by lane).
 use crate::glam::Vec3;
-use crate::layout::{KdNode, KD_MAX_DEPTH, NO_HIT};
 #[cfg(not(target_arch = "spirv"))]
 use crate::layout::BLOCK_WIDTH;
+use crate::layout::{KdNode, KD_MAX_DEPTH, NO_HIT};
 use crate::numerics::{gamma, is_finite3, T_SLACK};
 use crate::scene::SceneView;
 use crate::triangle::RayShear;
@@ -89,7 +89,15 @@ pub(crate) fn safe_reciprocal(d: Vec3) -> Vec3 {
 /// The exit distance is widened by 2γ(3) (pbrt-v4 `Bounds3::IntersectP`) so a triangle lying on
 /// the box face is not lost to rounding.
 #[inline]
-pub fn clip_to_bounds(lo: Vec3, hi: Vec3, origin: Vec3, dir: Vec3, inv: Vec3, t_min: f32, t_max: f32) -> Option<(f32, f32)> {
+pub fn clip_to_bounds(
+    lo: Vec3,
+    hi: Vec3,
+    origin: Vec3,
+    dir: Vec3,
+    inv: Vec3,
+    t_min: f32,
+    t_max: f32,
+) -> Option<(f32, f32)> {
     let mut t0 = t_min;
     let mut t1 = t_max;
     let mut a = 0;
@@ -160,7 +168,14 @@ pub(crate) fn ray_start(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32) 
 /// GPU thread would execute the lanes one after another, so it tests the leaf's triangles one by one
 /// (`test_leaf_each`). Both return the same hit and the same counts (tested against each other).
 #[inline]
-pub(crate) fn test_leaf(scene: &SceneView, shear: &RayShear, n: KdNode, best: &mut Hit, tests: &mut u32, any_hit: bool) -> bool {
+pub(crate) fn test_leaf(
+    scene: &SceneView,
+    shear: &RayShear,
+    n: KdNode,
+    best: &mut Hit,
+    tests: &mut u32,
+    any_hit: bool,
+) -> bool {
     #[cfg(target_arch = "spirv")]
     return test_leaf_each(scene, shear, n, best, tests, any_hit);
     #[cfg(not(target_arch = "spirv"))]
@@ -169,7 +184,14 @@ pub(crate) fn test_leaf(scene: &SceneView, shear: &RayShear, n: KdNode, best: &m
 
 /// `test_leaf` one triangle at a time, in the order of the leaf's run.
 #[inline]
-pub fn test_leaf_each(scene: &SceneView, shear: &RayShear, n: KdNode, best: &mut Hit, tests: &mut u32, any_hit: bool) -> bool {
+pub fn test_leaf_each(
+    scene: &SceneView,
+    shear: &RayShear,
+    n: KdNode,
+    best: &mut Hit,
+    tests: &mut u32,
+    any_hit: bool,
+) -> bool {
     let start = n.first_index();
     let end = start + n.count();
     *tests += n.count();
@@ -193,7 +215,14 @@ pub fn test_leaf_each(scene: &SceneView, shear: &RayShear, n: KdNode, best: &mut
 /// the hit and the counts are `test_leaf_each`'s.
 #[cfg(not(target_arch = "spirv"))]
 #[inline]
-pub fn test_leaf_blocks(scene: &SceneView, shear: &RayShear, n: KdNode, best: &mut Hit, tests: &mut u32, any_hit: bool) -> bool {
+pub fn test_leaf_blocks(
+    scene: &SceneView,
+    shear: &RayShear,
+    n: KdNode,
+    best: &mut Hit,
+    tests: &mut u32,
+    any_hit: bool,
+) -> bool {
     let start = n.first_index();
     let end = start + n.count();
     *tests += n.count();

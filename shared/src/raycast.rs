@@ -48,5 +48,12 @@ pub fn cast_ray(scene: &SceneView, q: &RayQuery) -> RayResult {
     let (o, d) = (xyz(q.origin), xyz(q.dir));
     let traversal = if (q.flags & RAY_SHORT_STACK) != 0 { TRAVERSAL_SHORT_STACK } else { 0 };
     let r = query(scene, traversal, o, d, q.t_max, (q.flags & RAY_ANY_HIT) != 0);
-    RayResult { t: r.hit.t, triangle: r.hit.triangle, nodes: r.hit.nodes, tests: r.hit.tests, restarts: r.restarts, _pad: [0; 3] }
+    RayResult {
+        t: r.hit.t,
+        triangle: r.hit.triangle,
+        nodes: r.hit.nodes,
+        tests: r.hit.tests,
+        restarts: r.restarts,
+        _pad: [0; 3],
+    }
 }

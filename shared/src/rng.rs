@@ -203,7 +203,10 @@ mod tests {
                 let net = cells.iter().all(|&c| c == 1);
                 assert_eq!(net, set < SOBOL_SETS, "pixel {pixel} set {set}: {cells:?}");
                 if set >= SOBOL_SETS {
-                    assert_eq!(Sampler::at(SAMPLER_SOBOL, pixel, 7, set, 9), Sampler::at(SAMPLER_INDEPENDENT, pixel, 7, set, 9));
+                    assert_eq!(
+                        Sampler::at(SAMPLER_SOBOL, pixel, 7, set, 9),
+                        Sampler::at(SAMPLER_INDEPENDENT, pixel, 7, set, 9)
+                    );
                 }
             }
         }
@@ -221,7 +224,8 @@ mod tests {
             sbb += b * b;
         }
         let nf = n as f64;
-        let r = (sab / nf - sa / nf * sb / nf) / ((saa / nf - (sa / nf).powi(2)) * (sbb / nf - (sb / nf).powi(2))).sqrt();
+        let r =
+            (sab / nf - sa / nf * sb / nf) / ((saa / nf - (sa / nf).powi(2)) * (sbb / nf - (sb / nf).powi(2))).sqrt();
         assert!(r.abs() < 5.0 / nf.sqrt(), "sets correlated: r = {r}");
     }
 }

@@ -131,7 +131,13 @@ mod tests {
 
     #[test]
     fn basis_is_orthonormal() {
-        for &n in &[Vec3::Z, -Vec3::Z, Vec3::X, Vec3::new(0.3, -0.5, 0.81).normalize(), Vec3::new(-1e-4, 1e-4, -1.0).normalize()] {
+        for &n in &[
+            Vec3::Z,
+            -Vec3::Z,
+            Vec3::X,
+            Vec3::new(0.3, -0.5, 0.81).normalize(),
+            Vec3::new(-1e-4, 1e-4, -1.0).normalize(),
+        ] {
             let (t, b) = orthonormal_basis(n);
             assert!(t.dot(b).abs() < 1e-5 && t.dot(n).abs() < 1e-5 && b.dot(n).abs() < 1e-5);
             assert!((t.length() - 1.0).abs() < 1e-5 && (b.length() - 1.0).abs() < 1e-5);

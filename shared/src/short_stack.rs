@@ -42,7 +42,13 @@ pub struct ShortHit {
     pub restarts: u32,
 }
 
-pub(crate) fn traverse<const S: usize>(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32, any_hit: bool) -> ShortHit {
+pub(crate) fn traverse<const S: usize>(
+    scene: &SceneView,
+    origin: Vec3,
+    dir: Vec3,
+    t_max: f32,
+    any_hit: bool,
+) -> ShortHit {
     let mut best = Hit::miss(t_max);
     let mut restarts = 0u32;
     let ray = match ray_start(scene, origin, dir, t_max) {
@@ -127,7 +133,10 @@ pub(crate) fn traverse<const S: usize>(scene: &SceneView, origin: Vec3, dir: Vec
     }
     if fall_back {
         let full = crate::kdtree::traverse(scene, origin, dir, t_max, any_hit);
-        return ShortHit { hit: Hit { nodes: nodes + full.nodes, tests: tests + full.tests, ..full }, restarts: restarts + 1 };
+        return ShortHit {
+            hit: Hit { nodes: nodes + full.nodes, tests: tests + full.tests, ..full },
+            restarts: restarts + 1,
+        };
     }
     best.nodes = nodes;
     best.tests = tests;

@@ -107,7 +107,13 @@ type Lanes = core::simd::Simd<f32, { BLOCK_WIDTH as usize }>;
 /// distance coordinate before scaling, lane by lane the same operations as `RayShear::intersect`.
 #[cfg(not(target_arch = "spirv"))]
 #[inline]
-fn sheared_lanes(b: &TriBlock, j: usize, k: (usize, usize, usize), o: (Lanes, Lanes, Lanes), s: (Lanes, Lanes)) -> (Lanes, Lanes, Lanes) {
+fn sheared_lanes(
+    b: &TriBlock,
+    j: usize,
+    k: (usize, usize, usize),
+    o: (Lanes, Lanes, Lanes),
+    s: (Lanes, Lanes),
+) -> (Lanes, Lanes, Lanes) {
     let kz = Lanes::from_array(b.v[3 * j + k.2]) - o.2;
     let x = (Lanes::from_array(b.v[3 * j + k.0]) - o.0) - s.0 * kz;
     let y = (Lanes::from_array(b.v[3 * j + k.1]) - o.1) - s.1 * kz;
@@ -124,7 +130,14 @@ impl RayShear {
     /// `core::simd` never contracts a multiply and an add).
     /// With `first`, the lowest lane that hits (what a one-by-one any-hit test stops at).
     #[inline]
-    pub fn intersect_block(&self, b: &TriBlock, lanes: u32, t_min: f32, t_max: f32, first: bool) -> Option<(u32, TriangleHit)> {
+    pub fn intersect_block(
+        &self,
+        b: &TriBlock,
+        lanes: u32,
+        t_min: f32,
+        t_max: f32,
+        first: bool,
+    ) -> Option<(u32, TriangleHit)> {
         use core::simd::cmp::{SimdPartialEq, SimdPartialOrd};
         // The axes are below 3 by construction; saying so lets the compiler drop the bounds
         // checks of the nine loads.
@@ -236,7 +249,11 @@ mod tests {
     use crate::glam::Vec4;
 
     fn tri(a: [f32; 3], b: [f32; 3], c: [f32; 3]) -> Triangle {
-        Triangle { v0: Vec4::new(a[0], a[1], a[2], 0.0), v1: Vec4::new(b[0], b[1], b[2], 0.0), v2: Vec4::new(c[0], c[1], c[2], 0.0) }
+        Triangle {
+            v0: Vec4::new(a[0], a[1], a[2], 0.0),
+            v1: Vec4::new(b[0], b[1], b[2], 0.0),
+            v2: Vec4::new(c[0], c[1], c[2], 0.0),
+        }
     }
 
     #[test]
@@ -298,7 +315,7 @@ mod tests {
                     0 => base,
                     1 => tri([r(), r(), r()], [r(), r(), r()], [r(), r(), r()]),
                     2 => Triangle { v0: base.v1, v1: base.v0, v2: tri([r(), r(), r()], [0.0; 3], [0.0; 3]).v0 }, // shares an edge
-                    3 => tri([0.0; 3], [0.0; 3], [0.0; 3]),                        // degenerate
+                    3 => tri([0.0; 3], [0.0; 3], [0.0; 3]), // degenerate
                     _ => tri([r(), r(), 0.25], [r(), r(), 0.25], [r(), r(), 0.25]), // axis-aligned
                 };
             }
@@ -332,7 +349,9 @@ mod tests {
                         }
                     }
                     let got = shear.intersect_block(&block, mask, 0.0, t_max, first);
-                    let key = |x: Option<(u32, TriangleHit)>| x.map(|(l, h)| (l, h.t.to_bits(), h.u.to_bits(), h.v.to_bits(), h.w.to_bits()));
+                    let key = |x: Option<(u32, TriangleHit)>| {
+                        x.map(|(l, h)| (l, h.t.to_bits(), h.u.to_bits(), h.v.to_bits(), h.w.to_bits()))
+                    };
                     assert_eq!(key(got), key(want), "case {case} mask {mask:08b} first {first}");
                     checked += want.is_some() as u32;
                 }

@@ -38,7 +38,14 @@ pub fn join(p: &Parts) -> Vec<u8> {
 pub fn section_offset(p: &Parts, which: usize) -> usize {
     let c = &p.header["counts"];
     let n = |k: &str| c[k].as_u64().unwrap() as usize;
-    let sizes = [n("triangles") * 48, n("triangles") * 8, n("materials") * 64, n("lights") * 16, n("nodes") * 8, n("indices") * 4];
+    let sizes = [
+        n("triangles") * 48,
+        n("triangles") * 8,
+        n("materials") * 64,
+        n("lights") * 16,
+        n("nodes") * 8,
+        n("indices") * 4,
+    ];
     sizes[..which].iter().sum()
 }
 

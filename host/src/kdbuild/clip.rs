@@ -64,7 +64,11 @@ fn greater<T: PartialOrd>(a: T, b: T) -> T {
 pub type Tri64 = [[f64; 3]; 3];
 
 pub fn to_f64(t: &Triangle) -> Tri64 {
-    [[t.v0.x as f64, t.v0.y as f64, t.v0.z as f64], [t.v1.x as f64, t.v1.y as f64, t.v1.z as f64], [t.v2.x as f64, t.v2.y as f64, t.v2.z as f64]]
+    [
+        [t.v0.x as f64, t.v0.y as f64, t.v0.z as f64],
+        [t.v1.x as f64, t.v1.y as f64, t.v1.z as f64],
+        [t.v2.x as f64, t.v2.y as f64, t.v2.z as f64],
+    ]
 }
 
 /// Room for the clipped polygon: a convex triangle gains at most one vertex per plane (9 in
@@ -86,7 +90,9 @@ impl Polygon {
 
     /// (min, max) of the vertices on axis `k`; only for a non-empty polygon.
     pub fn range(&self, k: usize) -> (f64, f64) {
-        self.vertices().iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lesser(lo, p[k]), greater(hi, p[k])))
+        self.vertices()
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lesser(lo, p[k]), greater(hi, p[k])))
     }
 }
 
@@ -383,7 +389,11 @@ mod tests {
             let (below, above) = voxel.split(k, pos);
             for (got, half) in split.iter().zip([below, above]) {
                 let want = clipped_box(&t, &half);
-                assert_eq!(got.is_some(), want.is_some(), "trial {trial}: {t:?} at {pos} on axis {k}: {got:?} against {want:?}");
+                assert_eq!(
+                    got.is_some(),
+                    want.is_some(),
+                    "trial {trial}: {t:?} at {pos} on axis {k}: {got:?} against {want:?}"
+                );
                 if let (Some(g), Some(w)) = (got, want) {
                     let worst = (0..3).map(|j| ulp(g.lo[j], w.lo[j]).max(ulp(g.hi[j], w.hi[j]))).max().unwrap();
                     assert!(worst <= 1, "trial {trial}: {t:?} at {pos} on axis {k}: {g:?} against {w:?}");

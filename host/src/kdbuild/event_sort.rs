@@ -92,7 +92,22 @@ mod tests {
 
     #[test]
     fn ordered_bits_follow_total_order() {
-        let xs = [f32::NEG_INFINITY, -1e30, -2.0, -1.0, -f32::MIN_POSITIVE, -1e-45, -0.0, 0.0, 1e-45, f32::MIN_POSITIVE, 0.5, 1.0, 3.0e38, f32::INFINITY];
+        let xs = [
+            f32::NEG_INFINITY,
+            -1e30,
+            -2.0,
+            -1.0,
+            -f32::MIN_POSITIVE,
+            -1e-45,
+            -0.0,
+            0.0,
+            1e-45,
+            f32::MIN_POSITIVE,
+            0.5,
+            1.0,
+            3.0e38,
+            f32::INFINITY,
+        ];
         for w in xs.windows(2) {
             assert!(ordered_bits(w[0]) < ordered_bits(w[1]), "{} !< {}", w[0], w[1]);
             assert_eq!(w[0].total_cmp(&w[1]), ordered_bits(w[0]).cmp(&ordered_bits(w[1])));
@@ -114,7 +129,11 @@ mod tests {
                 let items: Vec<(f32, u32, usize)> = (0..n)
                     .map(|i| {
                         let r = next();
-                        let pos = if distinct == 0 { f32::from_bits((r >> 32) as u32 & 0x7f7f_ffff) * if r & 1 == 0 { 1.0 } else { -1.0 } } else { palette[(r as usize >> 8) % distinct.min(palette.len())] };
+                        let pos = if distinct == 0 {
+                            f32::from_bits((r >> 32) as u32 & 0x7f7f_ffff) * if r & 1 == 0 { 1.0 } else { -1.0 }
+                        } else {
+                            palette[(r as usize >> 8) % distinct.min(palette.len())]
+                        };
                         (pos, (r >> 4) as u32 % 3, i)
                     })
                     .collect();
@@ -124,7 +143,11 @@ mod tests {
                 let mut got = items.clone();
                 sort_by_key34(&mut got, &mut tmp, |e| key(e.0, e.1));
                 // Stable: ties keep their input order, exactly the stable sort's output.
-                assert_eq!(got.iter().map(|e| e.2).collect::<Vec<_>>(), want.iter().map(|e| e.2).collect::<Vec<_>>(), "n {n} distinct {distinct}");
+                assert_eq!(
+                    got.iter().map(|e| e.2).collect::<Vec<_>>(),
+                    want.iter().map(|e| e.2).collect::<Vec<_>>(),
+                    "n {n} distinct {distinct}"
+                );
                 let mut keys: Vec<_> = got.iter().map(|e| (e.0.to_bits(), e.1)).collect();
                 let mut wk: Vec<_> = want.iter().map(|e| (e.0.to_bits(), e.1)).collect();
                 keys.sort();

@@ -6,8 +6,8 @@
 //! their bounding boxes: a triangle goes to every child whose closed half-space its box reaches
 //! beyond the plane, and one lying in the plane goes to both. That placement is conservative, so
 //! traversal returns exactly the brute-force hit.
-use shared::glam::Vec3;
 use super::KdTree;
+use shared::glam::Vec3;
 use shared::layout::{KdNode, Triangle};
 use shared::vecmath::{axis, xyz};
 
@@ -76,7 +76,9 @@ impl Builder<'_> {
                 }
             }
             // A split that leaves (almost) every triangle on both sides only adds depth.
-            if below.len() + above.len() > ids.len() + ids.len() / 2 || below.len() == ids.len() && above.len() == ids.len() {
+            if below.len() + above.len() > ids.len() + ids.len() / 2
+                || below.len() == ids.len() && above.len() == ids.len()
+            {
                 continue;
             }
             let me = self.tree.nodes.len();

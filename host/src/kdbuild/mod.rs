@@ -66,7 +66,17 @@ pub struct BuildSettings {
 
 impl Default for BuildSettings {
     fn default() -> Self {
-        Self { builder: Builder::Sah, traversal_cost: 15.0, intersection_cost: 4.0, leaf_block: BLOCK_WIDTH, empty_factor: 0.8, max_depth: 0, leaf_size: 1, bad_refines: 2, max_refs_factor: 16.0 }
+        Self {
+            builder: Builder::Sah,
+            traversal_cost: 15.0,
+            intersection_cost: 4.0,
+            leaf_block: BLOCK_WIDTH,
+            empty_factor: 0.8,
+            max_depth: 0,
+            leaf_size: 1,
+            bad_refines: 2,
+            max_refs_factor: 16.0,
+        }
     }
 }
 
@@ -82,7 +92,11 @@ impl BuildSettings {
     pub fn check(&self) -> anyhow::Result<()> {
         let finite_positive = |x: f32| x.is_finite() && x > 0.0;
         if !finite_positive(self.traversal_cost) || !finite_positive(self.intersection_cost) {
-            anyhow::bail!("traversal and intersection costs must be finite and positive (got {} and {})", self.traversal_cost, self.intersection_cost);
+            anyhow::bail!(
+                "traversal and intersection costs must be finite and positive (got {} and {})",
+                self.traversal_cost,
+                self.intersection_cost
+            );
         }
         if !(1..=64).contains(&self.leaf_block) {
             anyhow::bail!("leaf block {} must be 1 to 64 triangles", self.leaf_block);
@@ -94,7 +108,10 @@ impl BuildSettings {
             anyhow::bail!("reference budget factor {} must be 0 (no limit) or at least 1", self.max_refs_factor);
         }
         if self.max_depth > KD_MAX_DEPTH {
-            anyhow::bail!("max depth {} exceeds {KD_MAX_DEPTH}, the deepest tree the traversal stack holds", self.max_depth);
+            anyhow::bail!(
+                "max depth {} exceeds {KD_MAX_DEPTH}, the deepest tree the traversal stack holds",
+                self.max_depth
+            );
         }
         Ok(())
     }
@@ -200,7 +217,9 @@ pub fn build(triangles: &[Triangle], bounds_min: Vec3, bounds_max: Vec3, setting
     let max_depth = settings.depth_limit(triangles.len());
     let mut tree = match settings.builder {
         Builder::Median => median::build(triangles, bounds_min, bounds_max, settings.leaf_size.max(4), max_depth),
-        Builder::Sah => sah::build(triangles, Aabb { lo: bounds_min.to_array(), hi: bounds_max.to_array() }, &settings, max_depth),
+        Builder::Sah => {
+            sah::build(triangles, Aabb { lo: bounds_min.to_array(), hi: bounds_max.to_array() }, &settings, max_depth)
+        }
     };
     align_leaves(&mut tree);
     tree
@@ -242,6 +261,7 @@ pub fn is_aligned(tree: &KdTree) -> bool {
         && tree.nodes.iter().filter(|n| n.is_leaf() && n.count() > 0).all(|n| {
             let (first, end) = (n.first_index() as usize, (n.first_index() + n.count()) as usize);
             let padded = end.div_ceil(width) * width;
-            first % width == 0 && tree.indices.get(end - 1..padded).is_some_and(|tail| tail.iter().all(|&id| id == tail[0]))
+            first % width == 0
+                && tree.indices.get(end - 1..padded).is_some_and(|tail| tail.iter().all(|&id| id == tail[0]))
         })
 }

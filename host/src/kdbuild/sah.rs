@@ -37,9 +37,9 @@
 use super::clip::{clipped_box, clipped_box_with, split_boxes, to_f64, Aabb, ClipBuffers};
 use super::{event_sort, BuildSettings, KdTree, LeafTests};
 use rayon::prelude::*;
+use shared::layout::{KdNode, Triangle};
 use std::mem::MaybeUninit;
 use std::simd::prelude::*;
-use shared::layout::{KdNode, Triangle};
 
 const END: u32 = 0;
 const PLANAR: u32 = 1;
@@ -131,7 +131,10 @@ fn run_masks(raw: &[u64], first: usize) -> Group {
     const KIND: u64 = 3 << REFERENCE_BITS;
     let kinds = |v: Lanes| {
         let k = v & Lanes::splat(KIND);
-        (k.simd_eq(Lanes::splat((END as u64) << REFERENCE_BITS)).to_bitmask() as u32, k.simd_eq(Lanes::splat((PLANAR as u64) << REFERENCE_BITS)).to_bitmask() as u32)
+        (
+            k.simd_eq(Lanes::splat((END as u64) << REFERENCE_BITS)).to_bitmask() as u32,
+            k.simd_eq(Lanes::splat((PLANAR as u64) << REFERENCE_BITS)).to_bitmask() as u32,
+        )
     };
     let masks = |events: &[u64]| {
         let (v, w) = (Lanes::from_slice(&events[..LANES]), Lanes::from_slice(&events[1..LANES + 1]));
@@ -186,12 +189,17 @@ impl SweepCheck {
 
     fn state(&mut self, raw: &[u64], first: usize, kept: (usize, usize, usize, usize)) {
         self.advance(raw, 0, first, |_, _, _, _| {});
-        assert_eq!(kept, (self.ends, self.planars, self.below, self.planar_done), "the sweep's counts at event {first}");
+        assert_eq!(
+            kept,
+            (self.ends, self.planars, self.below, self.planar_done),
+            "the sweep's counts at event {first}"
+        );
     }
 
     fn passed_over(&mut self, sah: &Sah, raw: &[u64], n: usize, sweep: &Sweep, to: usize, threshold: f64) {
         self.advance(raw, n, to, |bits, below, planar, above| {
-            let bound = sah.screened(sah.estimate(sweep, bits, below, above), (planar != 0) | (below == 0) | (above == 0));
+            let bound =
+                sah.screened(sah.estimate(sweep, bits, below, above), (planar != 0) | (below == 0) | (above == 0));
             assert!(bound > threshold, "a run passed over at {bits:#x} has bound {bound} not above {threshold}");
         });
     }
@@ -465,7 +473,6 @@ impl Part {
     }
 }
 
-
 impl Subtree {
     fn append(&mut self, other: Subtree) {
         let (node_base, index_base) = (self.nodes.len() as u32, self.indices.len() as u32);
@@ -533,7 +540,11 @@ pub fn build(triangles: &[Triangle], bounds: Aabb, settings: &BuildSettings, max
     };
     let stash = Stash::default();
     let boxes: Vec<Option<Aabb>> = triangles.par_iter().map(|t| clipped_box(&to_f64(t), &bounds)).collect();
-    let budget = if settings.max_refs_factor > 0.0 { settings.max_refs_factor as f64 * triangles.len().max(1) as f64 } else { f64::INFINITY };
+    let budget = if settings.max_refs_factor > 0.0 {
+        settings.max_refs_factor as f64 * triangles.len().max(1) as f64
+    } else {
+        f64::INFINITY
+    };
     // The root's lists at their exact sizes: grown by doubling, each would be copied into fresh
     // memory a score of times, and this VM zeroes fresh pages slowly.
     let mut sizes = [0usize; 3];
@@ -543,7 +554,14 @@ pub fn build(triangles: &[Triangle], bounds: Aabb, settings: &BuildSettings, max
         }
     }
     let events = sizes.map(Vec::with_capacity);
-    let mut root = Node { triangles: Vec::with_capacity(triangles.len()), events, voxel: bounds, depth: 0, bad_refines: 0, budget };
+    let mut root = Node {
+        triangles: Vec::with_capacity(triangles.len()),
+        events,
+        voxel: bounds,
+        depth: 0,
+        bad_refines: 0,
+        budget,
+    };
     for (id, b) in boxes.iter().enumerate() {
         if let Some(b) = b {
             push_events(&mut root.events, root.triangles.len(), b);
@@ -661,7 +679,15 @@ impl Sah<'_> {
         for (k, events) in node.events.iter().enumerate() {
             let (lo, hi) = (voxel.lo[k], voxel.hi[k]);
             let (e1, e2) = (voxel.extent((k + 1) % 3), voxel.extent((k + 2) % 3));
-            let sweep = Sweep { face: e1 * e2, rim: e1 + e2, area, lo, hi, scale: 2.0 * self.intersection_cost / area, axis: k };
+            let sweep = Sweep {
+                face: e1 * e2,
+                rim: e1 + e2,
+                area,
+                lo,
+                hi,
+                scale: 2.0 * self.intersection_cost / area,
+                axis: k,
+            };
             self.sweep(events, n, &sweep, &mut best);
         }
         best
@@ -691,7 +717,16 @@ impl Sah<'_> {
                 let (starts, planars) = kind_counts(block);
                 let least_above = n - (ends_before + planar_before + BLOCK - starts);
                 let special = (planars != 0) | (planar_before != planar_done) | (below == 0) | (least_above == 0);
-                let bound = self.screened(self.estimate_between(sweep, Event(block[0]).pos_bits(), Event(block[BLOCK - 1]).pos_bits(), below, least_above), special);
+                let bound = self.screened(
+                    self.estimate_between(
+                        sweep,
+                        Event(block[0]).pos_bits(),
+                        Event(block[BLOCK - 1]).pos_bits(),
+                        below,
+                        least_above,
+                    ),
+                    special,
+                );
                 if bound > threshold {
                     #[cfg(test)]
                     check.passed_over(self, raw, n, sweep, first + BLOCK, threshold);
@@ -721,7 +756,8 @@ impl Sah<'_> {
                 }
             }
             let Group { mut runs, ends, planar: planars, bits } = run_masks(raw, first);
-            let (ends_after, planar_after) = (ends_before + ends.count_ones() as usize, planar_before + planars.count_ones() as usize);
+            let (ends_after, planar_after) =
+                (ends_before + ends.count_ones() as usize, planar_before + planars.count_ones() as usize);
             if runs != 0 && threshold < f64::INFINITY {
                 // Every run ending in the group has at least `below` references below and
                 // `n - ends_after - planar_after` above, and lies between the first and the
@@ -733,7 +769,10 @@ impl Sah<'_> {
                 // A run with planar references (this group's, or an unfinished run's from the
                 // last group) or an empty side is screened by its estimate times the smaller λ.
                 let special = (planars != 0) | (planar_before != planar_done) | (below == 0) | (least_above == 0);
-                let bound = self.screened(self.estimate_between(sweep, bits[runs.trailing_zeros() as usize], bits[last], below, least_above), special);
+                let bound = self.screened(
+                    self.estimate_between(sweep, bits[runs.trailing_zeros() as usize], bits[last], below, least_above),
+                    special,
+                );
                 if bound > threshold {
                     #[cfg(test)]
                     check.passed_over(self, raw, n, sweep, first + LANES, threshold);
@@ -818,7 +857,11 @@ impl Sah<'_> {
             // λ = 1, and the plane lies inside the voxel: `evaluate` without its cases (and
             // the same cost, bit for bit).
             let (p_below, p_above) = s.probabilities(s.faces(pos));
-            Some((self.traversal_cost + self.intersection_cost * (p_below * self.leaf_tests(below) + p_above * self.leaf_tests(above)), true))
+            Some((
+                self.traversal_cost
+                    + self.intersection_cost * (p_below * self.leaf_tests(below) + p_above * self.leaf_tests(above)),
+                true,
+            ))
         } else {
             self.evaluate(s, pos, below, planar, above)
         };
@@ -842,7 +885,11 @@ impl Sah<'_> {
                 return None;
             }
             let lambda = if (nb == 0 || na == 0) && !flat_on_boundary { self.empty_factor } else { 1.0 };
-            Some(lambda * (self.traversal_cost + self.intersection_cost * (p_below * self.leaf_tests(nb) + p_above * self.leaf_tests(na))))
+            Some(
+                lambda
+                    * (self.traversal_cost
+                        + self.intersection_cost * (p_below * self.leaf_tests(nb) + p_above * self.leaf_tests(na))),
+            )
         };
         if planar == 0 {
             // Both placements are the same split; ties go below.
@@ -869,7 +916,14 @@ impl Sah<'_> {
         let full = budget * triangles.len() as f64 / refs;
         let empty = 0.0;
         let full_node = |voxel| Node { triangles, events, voxel, depth, bad_refines, budget: full };
-        let empty_node = |voxel| Node { triangles: Vec::new(), events: Default::default(), voxel, depth, bad_refines, budget: empty };
+        let empty_node = |voxel| Node {
+            triangles: Vec::new(),
+            events: Default::default(),
+            voxel,
+            depth,
+            bad_refines,
+            budget: empty,
+        };
         if plane.below == 0 {
             (empty_node(below_voxel), full_node(above_voxel))
         } else {
@@ -903,7 +957,9 @@ impl Sah<'_> {
         // branch).
         let (planars, starts) = {
             let events = &node.events[k];
-            let at = |kind: u32| events.partition_point(|e| e.0 < ((pos_bits as u64) << 32 | (kind as u64) << REFERENCE_BITS));
+            let at = |kind: u32| {
+                events.partition_point(|e| e.0 < ((pos_bits as u64) << 32 | (kind as u64) << REFERENCE_BITS))
+            };
             let (planars, starts) = (at(PLANAR), at(START));
             fn mark(range: &[Event], code: &mut [u32], bit: impl Fn(u32) -> u32) {
                 for e in range {
@@ -932,7 +988,10 @@ impl Sah<'_> {
         {
             let caps = [plane.below + 1, plane.above + 1];
             let [below_tris, above_tris] = &mut tris;
-            let lists = [below_tris.spare_capacity_mut()[..caps[0]].as_mut_ptr(), above_tris.spare_capacity_mut()[..caps[1]].as_mut_ptr()];
+            let lists = [
+                below_tris.spare_capacity_mut()[..caps[0]].as_mut_ptr(),
+                above_tris.spare_capacity_mut()[..caps[1]].as_mut_ptr(),
+            ];
             let mut counts = [0usize; 2];
             for r in 0..n {
                 // A straddler's vertices are read from the scene, at random: fetch them ahead.
@@ -944,8 +1003,9 @@ impl Sah<'_> {
                 if c == STRADDLES {
                     // Clipped to each child (perfect splits); a child it misses drops it.
                     let tri = to_f64(&self.triangles[t as usize]);
-                    let boxes = split_boxes(&tri, &node.voxel, k, pos, &mut scratch.clip)
-                        .unwrap_or_else(|| [below_voxel, above_voxel].map(|voxel| clipped_box_with(&tri, &voxel, &mut scratch.clip)));
+                    let boxes = split_boxes(&tri, &node.voxel, k, pos, &mut scratch.clip).unwrap_or_else(|| {
+                        [below_voxel, above_voxel].map(|voxel| clipped_box_with(&tri, &voxel, &mut scratch.clip))
+                    });
                     for (s, b) in boxes.iter().enumerate() {
                         if let Some(b) = b {
                             if need[s] {
@@ -982,7 +1042,14 @@ impl Sah<'_> {
             }
         }
         let mut events: [[Vec<Event>; 3]; 2] = Default::default();
-        let Node { triangles: old_triangles, events: [old_x, old_y, old_z], voxel: _, depth: _, bad_refines: _, budget } = node;
+        let Node {
+            triangles: old_triangles,
+            events: [old_x, old_y, old_z],
+            voxel: _,
+            depth: _,
+            bad_refines: _,
+            budget,
+        } = node;
         for (axis, old) in [old_x, old_y, old_z].into_iter().enumerate() {
             for side in &mut fresh {
                 if !side[axis].is_empty() {
@@ -992,13 +1059,18 @@ impl Sah<'_> {
             let (fresh_below, fresh_above) = (&fresh[0][axis], &fresh[1][axis]);
             // A child holds at most two events per reference on each axis; the partition below
             // writes one slot past the events it keeps.
-            let (cap_b, cap_a) = ((old.len() + fresh_below.len()).min(2 * tris[0].len() + 1), (old.len() + fresh_above.len()).min(2 * tris[1].len() + 1));
-            let (mut below, mut above) = (scratch.events(if need[0] { cap_b } else { 0 }), scratch.events(if need[1] { cap_a } else { 0 }));
+            let (cap_b, cap_a) = (
+                (old.len() + fresh_below.len()).min(2 * tris[0].len() + 1),
+                (old.len() + fresh_above.len()).min(2 * tris[1].len() + 1),
+            );
+            let (mut below, mut above) =
+                (scratch.events(if need[0] { cap_b } else { 0 }), scratch.events(if need[1] { cap_a } else { 0 }));
             // On the split axis, the events below the starts at the plane keep references
             // below or none, and those from the planars at it on keep them above or none: each
             // side is partitioned on its own, one store an event.
             let split_axis = axis == k;
-            let (range_below, range_above) = if split_axis { (&old[..starts], &old[planars..]) } else { (&old[..], &old[..]) };
+            let (range_below, range_above) =
+                if split_axis { (&old[..starts], &old[planars..]) } else { (&old[..], &old[..]) };
             match need {
                 [true, true] if split_axis => {
                     keep_side(range_below, fresh_below, &code, KEEP_BELOW, &mut below, cap_b);
@@ -1023,7 +1095,10 @@ impl Sah<'_> {
                     // The smaller of the two: the one comparison an old event needs.
                     let mut next = kb.min(ka);
                     {
-                        let (bs, as_) = (below.spare_capacity_mut()[..cap_b].as_mut_ptr(), above.spare_capacity_mut()[..cap_a].as_mut_ptr());
+                        let (bs, as_) = (
+                            below.spare_capacity_mut()[..cap_b].as_mut_ptr(),
+                            above.spare_capacity_mut()[..cap_a].as_mut_ptr(),
+                        );
                         let codes = &code[..n];
                         for &Event(raw) in &old {
                             let floor = raw & !REFERENCE_MASK;
@@ -1063,8 +1138,16 @@ impl Sah<'_> {
                         // SAFETY: the rest of each fresh list fits in the capacity it was counted in.
                         unsafe {
                             debug_assert!(nb + fresh_below.len() - ib <= cap_b && na + fresh_above.len() - ia <= cap_a);
-                            std::ptr::copy_nonoverlapping(fresh_below[ib..].as_ptr(), bs.add(nb).cast::<Event>(), fresh_below.len() - ib);
-                            std::ptr::copy_nonoverlapping(fresh_above[ia..].as_ptr(), as_.add(na).cast::<Event>(), fresh_above.len() - ia);
+                            std::ptr::copy_nonoverlapping(
+                                fresh_below[ib..].as_ptr(),
+                                bs.add(nb).cast::<Event>(),
+                                fresh_below.len() - ib,
+                            );
+                            std::ptr::copy_nonoverlapping(
+                                fresh_above[ia..].as_ptr(),
+                                as_.add(na).cast::<Event>(),
+                                fresh_above.len() - ia,
+                            );
                         }
                         nb += fresh_below.len() - ib;
                         na += fresh_above.len() - ia;
@@ -1098,10 +1181,25 @@ impl Sah<'_> {
         // The budget follows the references: each child gets its share, so no subtree can take
         // more than the root allowed in all.
         let refs = (below_tris.len() + above_tris.len()).max(1) as f64;
-        let (below_budget, above_budget) = (budget * below_tris.len() as f64 / refs, budget * above_tris.len() as f64 / refs);
+        let (below_budget, above_budget) =
+            (budget * below_tris.len() as f64 / refs, budget * above_tris.len() as f64 / refs);
         (
-            Node { triangles: below_tris, events: below_events, voxel: below_voxel, depth, bad_refines, budget: below_budget },
-            Node { triangles: above_tris, events: above_events, voxel: above_voxel, depth, bad_refines, budget: above_budget },
+            Node {
+                triangles: below_tris,
+                events: below_events,
+                voxel: below_voxel,
+                depth,
+                bad_refines,
+                budget: below_budget,
+            },
+            Node {
+                triangles: above_tris,
+                events: above_events,
+                voxel: above_voxel,
+                depth,
+                bad_refines,
+                budget: above_budget,
+            },
         )
     }
 }
@@ -1144,7 +1242,16 @@ mod tests {
         let mut compared = 0;
         for trial in 0..3000 {
             let leaf_block = [1usize, 8, 3][trial % 3];
-            let sah = Sah { triangles: &[], traversal_cost: 15.0, intersection_cost: 4.0, leaf_block: LeafTests::new(leaf_block), empty_factor: 0.8, max_depth: 30, leaf_size: 1, bad_refines: 2 };
+            let sah = Sah {
+                triangles: &[],
+                traversal_cost: 15.0,
+                intersection_cost: 4.0,
+                leaf_block: LeafTests::new(leaf_block),
+                empty_factor: 0.8,
+                max_depth: 30,
+                leaf_size: 1,
+                bad_refines: 2,
+            };
             let n = 1 + (next() % [4, 40, 400, 3000][trial % 7 % 4]) as usize;
             // Few positions make long runs across groups and blocks; many make short ones.
             let levels = 1 + next() % [12, 12, 1000][trial % 5 % 3];
@@ -1164,11 +1271,21 @@ mod tests {
             sort_events(&mut events, &mut Vec::new());
             let (e1, e2) = (1.0 + (next() % 5) as f64, 0.5 + (next() % 3) as f64);
             let area = 2.0 * (e1 * e2 + (e1 + e2) * (hi - lo) as f64);
-            let sweep = Sweep { face: e1 * e2, rim: e1 + e2, area, lo, hi, scale: 2.0 * sah.intersection_cost / area, axis: trial % 3 };
+            let sweep = Sweep {
+                face: e1 * e2,
+                rim: e1 + e2,
+                area,
+                lo,
+                hi,
+                scale: 2.0 * sah.intersection_cost / area,
+                axis: trial % 3,
+            };
             let want = plain_sweep(&sah, &events, n, &sweep, None);
             let mut best = None;
             sah.sweep(&events, n, &sweep, &mut best);
-            let key = |p: Option<Plane>| p.map(|p| (p.axis, p.pos.to_bits(), p.planar_below, p.cost.to_bits(), p.below, p.above));
+            let key = |p: Option<Plane>| {
+                p.map(|p| (p.axis, p.pos.to_bits(), p.planar_below, p.cost.to_bits(), p.below, p.above))
+            };
             assert_eq!(key(best), key(want), "trial {trial}: {n} references, leaf block {leaf_block}");
             compared += want.is_some() as usize;
             // The same events on a second axis whose faces are a hair smaller: every plane there
@@ -1218,12 +1335,23 @@ mod tests {
         let mut next = crate::kdbuild::xorshift(12345);
         let mut tmp = Vec::new();
         for n in [0usize, 3, 100, event_sort::RADIX_MIN + 7, 5000] {
-            let mut list: Vec<Event> = (0..n).map(|r| Event::new([-2.0f32, -0.0, 0.0, 0.5, 3.0][next() as usize % 5] * (1 + next() % 3) as f32, r, (next() % 3) as u32)).collect();
+            let mut list: Vec<Event> = (0..n)
+                .map(|r| {
+                    Event::new(
+                        [-2.0f32, -0.0, 0.0, 0.5, 3.0][next() as usize % 5] * (1 + next() % 3) as f32,
+                        r,
+                        (next() % 3) as u32,
+                    )
+                })
+                .collect();
             let mut want = list.clone();
             want.sort_by(|a, b| a.pos().total_cmp(&b.pos()).then(a.kind().cmp(&b.kind())));
             sort_events(&mut list, &mut tmp);
             assert!(list.windows(2).all(|w| w[0].key() <= w[1].key()), "n {n}: not sorted");
-            assert!(list.iter().zip(&want).all(|(a, b)| a.pos().to_bits() == b.pos().to_bits() && a.kind() == b.kind()), "n {n}: not in the sweep order");
+            assert!(
+                list.iter().zip(&want).all(|(a, b)| a.pos().to_bits() == b.pos().to_bits() && a.kind() == b.kind()),
+                "n {n}: not in the sweep order"
+            );
             let key = |e: &Event| e.0;
             let (mut a, mut b): (Vec<_>, Vec<_>) = (list.iter().map(key).collect(), want.iter().map(key).collect());
             a.sort();

@@ -27,7 +27,8 @@ pub fn validate(tree: &KdTree, triangles: &[Triangle]) -> Result<(), String> {
     if (0..3).any(|k| !(root.lo[k] <= root.hi[k])) {
         return Err(format!("root box {root:?} is empty or not finite"));
     }
-    let reaching_root: Vec<u32> = (0..tris.len() as u32).filter(|&t| clip_polygon(&tris[t as usize], &root).is_none_or(|p| p.len > 0)).collect();
+    let reaching_root: Vec<u32> =
+        (0..tris.len() as u32).filter(|&t| clip_polygon(&tris[t as usize], &root).is_none_or(|p| p.len > 0)).collect();
     let mut stack = vec![(0usize, root, 0u32, reaching_root)];
     let mut visited = vec![false; tree.nodes.len()];
     while let Some((i, voxel, depth, reaching)) = stack.pop() {
@@ -84,7 +85,9 @@ pub fn validate(tree: &KdTree, triangles: &[Triangle]) -> Result<(), String> {
                 } else if listed_under(tree, above, &above_voxel, &tris[t as usize], t) {
                     above_ids.push(t);
                 } else {
-                    return Err(format!("node {i}: triangle {t} lies in split plane {s} (axis {k}) but neither child lists it"));
+                    return Err(format!(
+                        "node {i}: triangle {t} lies in split plane {s} (axis {k}) but neither child lists it"
+                    ));
                 }
             }
         }

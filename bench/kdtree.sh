@@ -26,3 +26,11 @@ for mesh in bunny-stanford-bun_zipper/bun_zipper.obj dragon-100k/dragon.obj happ
   $bin tree "$path" --leaf-block 1 --intersection-cost 20 --json 2>/dev/null | python3 -c "$row"
   $bin tree "$path" --builder median --json 2>/dev/null | python3 -c "$row"
 done
+# Every public mesh's tree passes `validate` (the tests check the meshes copied into tests/data).
+echo
+status=0
+for path in "$scenes"/*/*.obj; do
+  if ! $bin tree "$path" --validate >/dev/null 2>&1; then echo "INVALID TREE: $path"; status=1; fi
+done
+[ $status -eq 0 ] && echo "every tree of $scenes/*/*.obj passes validate"
+exit $status

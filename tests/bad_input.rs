@@ -4,10 +4,11 @@
 #[path = "common/kdc_craft.rs"]
 mod craft;
 
-use kdtrace::kdbuild::BuildSettings;
-use kdtrace::kdc;
-use std::path::{Path, PathBuf};
-use std::process::Command;
+use kdtrace::{kdbuild::BuildSettings, render::kdc};
+use std::{
+    path::{Path, PathBuf},
+    process::Command,
+};
 
 fn repo(rel: &str) -> String {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..").join(rel).to_string_lossy().into_owned()
@@ -285,7 +286,7 @@ fn cases() -> Vec<Case> {
                 let at = craft::section_offset(p, 4);
                 craft::put_u32(p, at + 4, 12345 << 2)
             }),
-            &["c.kdc", "k-d node 0"],
+            &["c.kdc", "k-d tree: node 0"],
         ),
         kdc_case(
             ".kdc with a material id out of range",

@@ -14,12 +14,14 @@
 use kdtrace::scene::{diffuse, Scene};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
-use shared::glam::{Vec3, Vec4};
-use shared::layout::{Light, Triangle};
-use shared::material::{eval, sample};
-use shared::rng::{Sampler, SAMPLER_INDEPENDENT, SAMPLER_SOBOL};
-use shared::sampling::{cosine_hemisphere, remap_in_light, select_light, uniform_triangle};
-use shared::vecmath::luminance;
+use shared::{
+    glam::{Vec3, Vec4},
+    layout::{Light, Triangle},
+    material::{eval, sample},
+    rng::{Sampler, SAMPLER_INDEPENDENT, SAMPLER_SOBOL},
+    sampling::{cosine_hemisphere, remap_in_light, select_light, uniform_triangle},
+    vecmath::luminance,
+};
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 use std::f64::consts::PI;
 
@@ -32,7 +34,7 @@ const SAMPLES: usize = 1_000_000;
 
 /// Šidák's per-test level for `TESTS` tests at family-wise level `ALPHA`.
 fn level() -> f64 {
-    kdtrace::metrics::sidak_alpha(ALPHA, TESTS)
+    kdtrace::image::metrics::sidak_alpha(ALPHA, TESTS)
 }
 
 #[derive(Debug)]

@@ -1,7 +1,9 @@
 //! The command line as a user meets it: the README's render, JSON output, verify's exit code,
 //! and bad input that gets exit code 2 and a message naming the file (never a panic).
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::{
+    path::{Path, PathBuf},
+    process::{Command, Output},
+};
 
 fn kdtrace(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_kdtrace")).args(args).output().expect("run kdtrace")
@@ -88,7 +90,7 @@ fn writes_linear_exr() {
         "0",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let (w, h, px) = kdtrace::image_io::read_exr(&out).unwrap();
+    let (w, h, px) = kdtrace::image::io::read_exr(&out).unwrap();
     assert_eq!((w, h, px.len()), (16, 16, 256));
     // Linear radiance: the light itself is far above 1.
     assert!(px.iter().any(|p| p[0] > 2.0), "no HDR values in the EXR");

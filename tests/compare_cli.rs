@@ -1,8 +1,10 @@
 //! `kdtrace compare` as a user meets it: EXR and PFM in, one JSON line with every metric, NaN/Inf
 //! counts, and exit code 2 naming both files for images of different sizes (and for bad files).
-use kdtrace::image_io::{write_image, write_pfm};
-use std::path::PathBuf;
-use std::process::{Command, Output};
+use kdtrace::image::io::{write_image, write_pfm};
+use std::{
+    path::PathBuf,
+    process::{Command, Output},
+};
 
 fn kdtrace(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_kdtrace")).args(args).output().expect("run kdtrace")

@@ -1,10 +1,9 @@
-//! ꟻLIP (`kdtrace::metrics::flip_srgb8`, NVIDIA's C++ through the `nv-flip` crate) against the
+//! ꟻLIP (`kdtrace::image::metrics::flip_srgb8`, NVIDIA's C++ through the `nv-flip` crate) against the
 //! values of NVIDIA's official `flip-evaluator` 1.7 (PyPI), stored in tests/data/flip by
 //! tests/data/flip/make_flip_reference.py: the mean to 1e-6 and every pixel of the error map to
 //! 1e-5, for a noisy-vs-converged render and a synthetic pattern pair (edges, lines, dots,
 //! colour shifts).
-use kdtrace::image_io::read_pfm;
-use kdtrace::metrics::flip_srgb8;
+use kdtrace::image::{io::read_pfm, metrics::flip_srgb8};
 use std::path::{Path, PathBuf};
 
 fn data() -> PathBuf {

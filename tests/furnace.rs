@@ -1,10 +1,13 @@
 //! Analytic scenes (pbrt's integrators_test.cpp in spirit): the white furnace, where every
 //! bounce count has a closed form, and one-sided emission seen from the front and the back.
-use kdtrace::camera::Camera;
-use kdtrace::kdbuild::BuildSettings;
-use kdtrace::render::{Compiled, RenderSettings, Rendered};
-use kdtrace::{compile, cpu, gpu, procedural};
-use shared::glam::Vec3;
+use kdtrace::{
+    compile,
+    kdbuild::BuildSettings,
+    render::{cpu, gpu, Compiled, Rendered},
+    scene::procedural,
+    settings::{camera::Camera, RenderSettings},
+};
+use shared::glam::{DVec3, Vec3};
 
 fn settings(size: u32, spp: u32, bounces: u32, camera: Camera) -> RenderSettings {
     RenderSettings {
@@ -19,7 +22,7 @@ fn settings(size: u32, spp: u32, bounces: u32, camera: Camera) -> RenderSettings
 }
 
 fn inside_camera() -> Camera {
-    Camera { eye: Vec3::new(0.1, -0.2, 0.3), target: Vec3::new(0.5, 0.4, -1.0), up: Vec3::Y, fov_deg: 90.0 }
+    Camera { eye: DVec3::new(0.1, -0.2, 0.3), target: DVec3::new(0.5, 0.4, -1.0), up: DVec3::Y, fov_deg: 90.0 }
 }
 
 fn image_mean(r: &Rendered) -> (f64, f64, f64) {
@@ -84,7 +87,7 @@ fn furnace_on_the_gpu_matches_the_analytic_value() {
 #[test]
 fn emission_is_one_sided_from_the_counter_clockwise_side() {
     let le = Vec3::new(3.0, 2.0, 1.0);
-    let camera = Camera { eye: Vec3::new(0.0, 0.0, 5.0), target: Vec3::ZERO, up: Vec3::Y, fov_deg: 10.0 };
+    let camera = Camera { eye: DVec3::new(0.0, 0.0, 5.0), target: DVec3::ZERO, up: DVec3::Y, fov_deg: 10.0 };
     for facing in [true, false] {
         let c = compile(procedural::emitter(le, facing).unwrap(), BuildSettings::default());
         let r = cpu::render(&c, &settings(8, 4, 0, camera), &no_progress).unwrap();

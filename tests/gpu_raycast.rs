@@ -1,23 +1,23 @@
 //! The traversal, ray by ray, on both devices: the ray-casting kernel and the CPU cast the same
 //! rays through the same tree and must return the same hit (distance bit for bit, same
 //! triangle) and do the same work (nodes visited, triangles tested).
-use kdtrace::kdbuild::BuildSettings;
-use kdtrace::render::Compiled;
-use kdtrace::{gpu, load};
+#[path = "common/paths.rs"]
+mod paths;
+use kdtrace::{
+    kdbuild::BuildSettings,
+    load,
+    render::{gpu, Compiled},
+};
+use paths::mesh;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
-use shared::glam::Vec3;
-use shared::layout::{RayQuery, RAY_ANY_HIT, RAY_SHORT_STACK};
-use shared::numerics::offset_ray_origin;
-use shared::raycast::cast_ray;
-use shared::triangle::{geometric_normal, interpolate};
-use std::path::PathBuf;
-
-fn shared_scene(rel: &str) -> PathBuf {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/scenes").join(rel);
-    assert!(p.exists(), "{} is missing: these tests read the public meshes in ../shared/scenes", p.display());
-    p
-}
+use shared::{
+    glam::Vec3,
+    layout::{RayQuery, RAY_ANY_HIT, RAY_SHORT_STACK},
+    numerics::offset_ray_origin,
+    raycast::cast_ray,
+    triangle::{geometric_normal, interpolate},
+};
 
 fn query(o: Vec3, d: Vec3, t_max: f32, flags: u32) -> RayQuery {
     RayQuery { origin: o.extend(0.0), dir: d.extend(0.0), t_max, flags, _pad: [0; 2] }
@@ -66,7 +66,7 @@ fn surface_rays(c: &Compiled, n: usize, seed: u64) -> Vec<RayQuery> {
 }
 
 fn cast_on_both(c: &Compiled, rays: &[RayQuery], what: &str) {
-    let g = gpu::Gpu::open(None).expect("a Vulkan adapter (lavapipe in CI: scripts/setup.sh installs it)");
+    let g = gpu::Gpu::lavapipe().unwrap_or_else(|e| panic!("{e:#}"));
     let params = c.bounds_params();
     let scene = c.view(&params);
     let cpu: Vec<_> = rays.iter().map(|q| cast_ray(&scene, q)).collect();
@@ -92,12 +92,12 @@ fn cast_on_both(c: &Compiled, rays: &[RayQuery], what: &str) {
 
 #[test]
 fn surface_rays_agree_on_the_water_box() {
-    let c = load(&shared_scene("CornellBox-Water/CornellBox-Water.obj"), BuildSettings::default()).unwrap().compiled;
+    let c = load(&mesh("CornellBox-Water/CornellBox-Water.obj"), BuildSettings::default()).unwrap().compiled;
     cast_on_both(&c, &surface_rays(&c, 20_000, 3), "CornellBox-Water");
 }
 
 #[test]
 fn surface_rays_agree_on_the_bunny() {
-    let c = load(&shared_scene("bunny-stanford-bun_zipper/bun_zipper.obj"), BuildSettings::default()).unwrap().compiled;
+    let c = load(&mesh("bunny-stanford-bun_zipper/bun_zipper.obj"), BuildSettings::default()).unwrap().compiled;
     cast_on_both(&c, &surface_rays(&c, 20_000, 4), "bunny");
 }

@@ -4,15 +4,17 @@
 #[path = "common/kdc_craft.rs"]
 mod craft;
 
-use kdtrace::kdbuild::BuildSettings;
-use kdtrace::kdc;
-use kdtrace::render::Compiled;
-use std::path::{Path, PathBuf};
-use std::process::Command;
-
-fn repo(rel: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..").join(rel)
-}
+#[path = "common/paths.rs"]
+mod paths;
+use kdtrace::{
+    kdbuild::BuildSettings,
+    render::{kdc, Compiled},
+};
+use paths::repo;
+use std::{
+    path::{Path, PathBuf},
+    process::Command,
+};
 
 fn tmp(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("kdtrace-kdc-{}", std::process::id()));
@@ -70,8 +72,8 @@ fn a_far_scene_keeps_its_local_frame_through_a_kdc() {
     let (lo, hi) = loaded.compiled.world_bounds();
     let s = loaded.settings.resolve(lo, hi).unwrap();
     let none = |_: u64, _: u64| {};
-    let a = kdtrace::cpu::render(&loaded.compiled, &s, &none).unwrap();
-    let b = kdtrace::cpu::render(&back.compiled, &s, &none).unwrap();
+    let a = kdtrace::render::cpu::render(&loaded.compiled, &s, &none).unwrap();
+    let b = kdtrace::render::cpu::render(&back.compiled, &s, &none).unwrap();
     assert_eq!(a.sum, b.sum);
     // The camera sees the box: most pixels are lit.
     let lit = a.mean().iter().filter(|p| p[0] + p[1] + p[2] > 0.01).count();
@@ -87,8 +89,8 @@ fn cornell_bytes() -> (Vec<u8>, kdtrace::Loaded) {
 fn written_scenes_read_back_bit_for_bit() {
     for rel in [
         "scenes/cornell-box.toml",
-        "../shared/scenes/CornellBox-Sphere/CornellBox-Sphere.obj",
-        "../shared/scenes/bunny-npm/bunny.obj",
+        "tests/data/meshes/CornellBox-Sphere/CornellBox-Sphere.obj",
+        "tests/data/meshes/bunny-npm/bunny.obj",
     ] {
         let loaded = kdtrace::load(&repo(rel), BuildSettings::default()).unwrap();
         let path = tmp(&format!("{}.kdc", Path::new(rel).file_stem().unwrap().to_string_lossy()));

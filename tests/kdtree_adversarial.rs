@@ -2,18 +2,25 @@
 //! zero-area, a single triangle, 10^5 copies of one triangle) must give a valid, bounded tree
 //! quickly; rays lying exactly in split planes and rays starting on triangle edges must get
 //! exactly the brute-force hit.
-use kdtrace::kdbuild::{build, is_aligned, stats, validate, BuildSettings, Builder, KdTree};
-use kdtrace::render::Compiled;
-use kdtrace::{compile, obj};
+#[path = "common/paths.rs"]
+mod paths;
+use kdtrace::{
+    compile,
+    kdbuild::{build, is_aligned, stats, validate, BuildSettings, Builder, KdTree},
+    render::Compiled,
+    scene::obj,
+};
+use paths::mesh;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use rayon::prelude::*;
-use shared::glam::Vec3;
-use shared::kdtree::{intersect, intersect_brute_force, test_leaf_blocks, test_leaf_each, Hit};
-use shared::layout::{KdNode, Triangle, BLOCK_WIDTH, KD_MAX_DEPTH};
-use shared::triangle::RayShear;
-use shared::vecmath::xyz;
-use std::path::PathBuf;
+use shared::{
+    glam::Vec3,
+    kdtree::{intersect, intersect_brute_force, test_leaf_blocks, test_leaf_each, Hit},
+    layout::{KdNode, Triangle, BLOCK_WIDTH, KD_MAX_DEPTH},
+    triangle::RayShear,
+    vecmath::xyz,
+};
 use std::time::Instant;
 
 fn tri(a: [f32; 3], b: [f32; 3], c: [f32; 3]) -> Triangle {
@@ -185,12 +192,6 @@ fn many_triangles_sharing_one_vertex_and_needles() {
     traversal_matches_brute_force("fan and needles", &tris, 20_000);
 }
 
-fn shared_scene(rel: &str) -> PathBuf {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/scenes").join(rel);
-    assert!(p.exists(), "{} is missing: these tests read the public meshes in ../shared/scenes", p.display());
-    p
-}
-
 fn check_exact(c: &Compiled, rays: &[(Vec3, Vec3)], what: &str) -> usize {
     let params = c.bounds_params();
     let scene = c.view(&params);
@@ -216,7 +217,7 @@ fn check_exact(c: &Compiled, rays: &[(Vec3, Vec3)], what: &str) -> usize {
 /// the plane), and rays crossing planes exactly at a vertex.
 #[test]
 fn rays_in_split_planes_and_from_triangle_edges_match_brute_force() {
-    let scene = obj::load_obj(&shared_scene("dragon-23k/dragon.obj")).unwrap();
+    let scene = obj::load_obj(&mesh("dragon-23k/dragon.obj")).unwrap();
     let c = compile(scene, BuildSettings::default());
     let (lo, hi) = (c.tree.bounds_min, c.tree.bounds_max);
     let mut rng = Pcg64::seed_from_u64(11);
@@ -260,7 +261,7 @@ fn rays_in_split_planes_and_from_triangle_edges_match_brute_force() {
 /// real mesh (Wald & Havran report about 2× fewer expected operations).
 #[test]
 fn sah_tree_is_cheaper_than_the_median_tree() {
-    let scene = obj::load_obj(&shared_scene("bunny-stanford-bun_zipper/bun_zipper.obj")).unwrap();
+    let scene = obj::load_obj(&mesh("bunny-stanford-bun_zipper/bun_zipper.obj")).unwrap();
     let n = scene.triangles.len();
     let sah_settings = BuildSettings::default();
     let median_settings = BuildSettings { builder: Builder::Median, ..Default::default() };
@@ -275,7 +276,7 @@ fn sah_tree_is_cheaper_than_the_median_tree() {
 /// own cost model: the block width reaches the sweep's cost function and the termination rule.
 #[test]
 fn each_leaf_cost_model_builds_the_tree_cheapest_under_it() {
-    let scene = obj::load_obj(&shared_scene("bunny-stanford-bun_zipper/bun_zipper.obj")).unwrap();
+    let scene = obj::load_obj(&mesh("bunny-stanford-bun_zipper/bun_zipper.obj")).unwrap();
     let n = scene.triangles.len();
     let cpu = BuildSettings::default();
     let gpu = BuildSettings::for_gpu();
@@ -298,7 +299,7 @@ fn each_leaf_cost_model_builds_the_tree_cheapest_under_it() {
 /// its hits stay exactly the brute-force ones.
 #[test]
 fn unaligned_leaves_are_laid_out_anew_and_stay_exact() {
-    let scene = obj::load_obj(&shared_scene("bunny-stanford-bun_zipper/bun_zipper.obj")).unwrap();
+    let scene = obj::load_obj(&mesh("bunny-stanford-bun_zipper/bun_zipper.obj")).unwrap();
     let mut tree = compile(scene.clone(), BuildSettings::default()).tree;
     assert!(is_aligned(&tree));
     // Pack the runs back to back, as the list was before blocks.
@@ -342,7 +343,7 @@ fn unaligned_leaves_are_laid_out_anew_and_stay_exact() {
 /// same count of tests and the same verdict, for closest and any hit.
 #[test]
 fn block_leaf_test_equals_the_one_by_one_test_on_every_leaf() {
-    let scene = obj::load_obj(&shared_scene("bunny-stanford-bun_zipper/bun_zipper.obj")).unwrap();
+    let scene = obj::load_obj(&mesh("bunny-stanford-bun_zipper/bun_zipper.obj")).unwrap();
     let c = compile(scene, BuildSettings::default());
     let params = c.bounds_params();
     let view = c.view(&params);

@@ -1,23 +1,24 @@
 //! The k-d traversal must return exactly what testing every triangle returns: the same distance
 //! bit for bit and the same triangle, unless two triangles are hit at that very distance.
-use kdtrace::kdbuild::{validate, BuildSettings};
-use kdtrace::render::Compiled;
-use kdtrace::{compile, obj, procedural};
+#[path = "common/paths.rs"]
+mod paths;
+use kdtrace::{
+    compile,
+    kdbuild::{validate, BuildSettings},
+    render::Compiled,
+    scene::{obj, procedural},
+};
+use paths::mesh;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use rayon::prelude::*;
-use shared::glam::Vec3;
-use shared::kdtree::{intersect, intersect_brute_force, occluded};
-use shared::scene::SceneView;
-use shared::triangle::RayShear;
-use shared::vecmath::xyz;
-use std::path::PathBuf;
-
-fn shared_scene(rel: &str) -> PathBuf {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/scenes").join(rel);
-    assert!(p.exists(), "{} is missing: these tests read the public meshes in ../shared/scenes", p.display());
-    p
-}
+use shared::{
+    glam::Vec3,
+    kdtree::{intersect, intersect_brute_force, occluded},
+    scene::SceneView,
+    triangle::RayShear,
+    vecmath::xyz,
+};
 
 fn view(c: &Compiled) -> SceneView<'_> {
     c.view(&c.bounds_params())
@@ -97,7 +98,7 @@ fn random_rays(c: &Compiled, n: usize, seed: u64) -> Vec<(Vec3, Vec3)> {
 }
 
 fn mesh_case(rel: &str, seed: u64) {
-    let scene = obj::load_obj(&shared_scene(rel)).unwrap();
+    let scene = obj::load_obj(&mesh(rel)).unwrap();
     let c = compile(scene, BuildSettings::default());
     validate(&c.tree, &c.scene.triangles).unwrap();
     let (rays, hits) = check_rays(&c, &random_rays(&c, 100_000, seed));

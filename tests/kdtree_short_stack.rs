@@ -1,22 +1,23 @@
 //! Short-stack traversal with restart returns exactly the brute-force hit for every stack size,
 //! restarts when the stack is small, and never restarts when it is as deep as the tree.
-use kdtrace::kdbuild::BuildSettings;
-use kdtrace::render::Compiled;
-use kdtrace::{compile, obj, procedural};
+#[path = "common/paths.rs"]
+mod paths;
+use kdtrace::{
+    compile,
+    kdbuild::BuildSettings,
+    render::Compiled,
+    scene::{obj, procedural},
+};
+use paths::mesh;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use rayon::prelude::*;
-use shared::glam::Vec3;
-use shared::kdtree::{intersect, intersect_brute_force, occluded};
-use shared::layout::KD_MAX_DEPTH;
-use shared::short_stack::{intersect_short, occluded_short, ShortHit};
-use std::path::PathBuf;
-
-fn shared_scene(rel: &str) -> PathBuf {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/scenes").join(rel);
-    assert!(p.exists(), "{} is missing: these tests read the public meshes in ../shared/scenes", p.display());
-    p
-}
+use shared::{
+    glam::Vec3,
+    kdtree::{intersect, intersect_brute_force, occluded},
+    layout::KD_MAX_DEPTH,
+    short_stack::{intersect_short, occluded_short, ShortHit},
+};
 
 fn rays(c: &Compiled, n: usize, seed: u64) -> Vec<(Vec3, Vec3)> {
     let mut rng = Pcg64::seed_from_u64(seed);
@@ -91,10 +92,8 @@ fn all_sizes(c: &Compiled, rays: &[(Vec3, Vec3)], what: &str, min_hits: usize) {
 
 #[test]
 fn short_stack_matches_brute_force_on_the_bunny() {
-    let c = compile(
-        obj::load_obj(&shared_scene("bunny-stanford-bun_zipper/bun_zipper.obj")).unwrap(),
-        BuildSettings::default(),
-    );
+    let c =
+        compile(obj::load_obj(&mesh("bunny-stanford-bun_zipper/bun_zipper.obj")).unwrap(), BuildSettings::default());
     all_sizes(&c, &rays(&c, 20_000, 5), "bunny", 15_000);
 }
 

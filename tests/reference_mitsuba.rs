@@ -5,20 +5,23 @@
 //! Statistics: kdtrace renders K = 16 independent images (seeds 1..=16) of N = 256 spp each. Per
 //! pixel channel, the K image values are K independent, identically distributed estimates; their
 //! mean m and unbiased variance s² give the one-sample t statistic t = (m − r) / √(s²/K) with
-//! K − 1 degrees of freedom against the reference value r (`kdtrace::metrics::mean_test`). The
+//! K − 1 degrees of freedom against the reference value r (`kdtrace::image::metrics::mean_test`). The
 //! reference has its own noise: its standard error e per pixel (from 16 chunks, stored beside
 //! it) is added in quadrature, t = (m − r) / √(s²/K + e²) (e is about 1/6 of √(s²/K) here).
 //! All 3·32·32 = 3072 channel tests are made at the Šidák level 1 − (1 − α)^(1/3072) with
 //! α = 0.01, so the chance that a correct renderer fails anywhere is 1%. With fixed seeds the
 //! outcome is deterministic. Besides, the mean over the image must be within 1% of Mitsuba's.
 //! Both checks are shown to fail on a wrong reference (mirrored, or 2% brighter).
-use kdtrace::camera::Camera;
-use kdtrace::cpu;
-use kdtrace::image_io::read_exr;
-use kdtrace::kdbuild::BuildSettings;
-use kdtrace::metrics::{pixel_test, pointwise, LinearImage, PixelStats, PixelTest};
-use kdtrace::render::RenderSettings;
-use shared::glam::Vec3;
+use kdtrace::{
+    image::{
+        io::read_exr,
+        metrics::{pixel_test, pointwise, LinearImage, PixelStats, PixelTest},
+    },
+    kdbuild::BuildSettings,
+    render::cpu,
+    settings::{camera::Camera, RenderSettings},
+};
+use shared::glam::DVec3;
 use std::path::PathBuf;
 
 const SIZE: u32 = 32;
@@ -39,9 +42,9 @@ fn read(name: &str) -> LinearImage {
 fn kdtrace_seed_statistics() -> (LinearImage, LinearImage) {
     let loaded = kdtrace::load(&root().join("scenes/cornell-box.obj"), BuildSettings::default()).unwrap();
     let camera = Camera {
-        eye: Vec3::new(0.278, 0.273, 0.8),
-        target: Vec3::new(0.278, 0.273, 0.0),
-        up: Vec3::Y,
+        eye: DVec3::new(0.278, 0.273, 0.8),
+        target: DVec3::new(0.278, 0.273, 0.0),
+        up: DVec3::Y,
         fov_deg: 39.3076,
     };
     let n = (SIZE * SIZE) as usize;

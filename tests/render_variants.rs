@@ -1,12 +1,16 @@
 //! Every way of rendering gives the same image: full-stack and short-stack traversal on the CPU,
 //! and on the GPU each traversal with one invocation per pixel and with persistent threads. The
 //! cost AOV (camera-ray traversal work) agrees between devices too and means what it says.
-use kdtrace::camera::Camera;
-use kdtrace::kdbuild::BuildSettings;
-use kdtrace::render::{Aov, Compiled, Dispatch, RenderSettings, Rendered, Traversal};
-use kdtrace::{cpu, gpu, load};
-use shared::glam::Vec3;
-use std::path::PathBuf;
+#[path = "common/paths.rs"]
+mod paths;
+use kdtrace::{
+    kdbuild::BuildSettings,
+    load,
+    render::{cpu, gpu, Compiled, Rendered},
+    settings::{camera::Camera, Aov, Dispatch, RenderSettings, Traversal},
+};
+use paths::mesh;
+use shared::glam::DVec3;
 
 fn no_progress(_: u64, _: u64) {}
 
@@ -14,15 +18,14 @@ fn no_progress(_: u64, _: u64) {}
 /// triangles make it deep enough that a 4-entry short stack overflows and restarts, which the
 /// CPU's shallow tree of eight-triangle leaves rarely does.
 fn water() -> Compiled {
-    let path =
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/scenes/CornellBox-Water/CornellBox-Water.obj");
+    let path = mesh("CornellBox-Water/CornellBox-Water.obj");
     assert!(path.exists(), "{} is missing", path.display());
     load(&path, BuildSettings::for_gpu()).unwrap().compiled
 }
 
 fn settings() -> RenderSettings {
     let camera =
-        Camera { eye: Vec3::new(0.0, 1.0, 3.4), target: Vec3::new(0.0, 1.0, 0.0), up: Vec3::Y, fov_deg: 39.3076 };
+        Camera { eye: DVec3::new(0.0, 1.0, 3.4), target: DVec3::new(0.0, 1.0, 0.0), up: DVec3::Y, fov_deg: 39.3076 };
     RenderSettings { width: 48, height: 40, spp: 8, max_bounces: 5, seed: 3, ..RenderSettings::with_camera(camera) }
 }
 
@@ -53,7 +56,7 @@ fn all_traversal_and_dispatch_variants_render_the_same_image() {
     let auto = cpu::render(&c, &RenderSettings { traversal: Traversal::Auto, ..base }, &no_progress).unwrap();
     assert_eq!(auto.traversal, Traversal::Full);
     same(&reference, &auto, "CPU auto");
-    let g = gpu::Gpu::open(None).expect("a Vulkan adapter (lavapipe in CI)");
+    let g = gpu::Gpu::lavapipe().unwrap_or_else(|e| panic!("{e:#}"));
     for traversal in [Traversal::Full, Traversal::Short, Traversal::Auto] {
         for dispatch in [Dispatch::Plain, Dispatch::Persistent] {
             let img = g.render(&c, &RenderSettings { traversal, dispatch, ..base }, &no_progress).unwrap();
@@ -68,8 +71,7 @@ fn all_traversal_and_dispatch_variants_render_the_same_image() {
 /// exact on any tree, so the images must still be identical, bit for bit.
 #[test]
 fn each_device_on_its_own_tree_renders_the_same_image() {
-    let path =
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/scenes/CornellBox-Water/CornellBox-Water.obj");
+    let path = mesh("CornellBox-Water/CornellBox-Water.obj");
     let cpu_tree = load(&path, BuildSettings::default()).unwrap().compiled;
     let gpu_tree = load(&path, BuildSettings::for_gpu()).unwrap().compiled;
     assert!(
@@ -81,7 +83,7 @@ fn each_device_on_its_own_tree_renders_the_same_image() {
     let s = settings();
     let reference = cpu::render(&cpu_tree, &s, &no_progress).unwrap();
     same(&reference, &cpu::render(&gpu_tree, &s, &no_progress).unwrap(), "CPU on the GPU's tree");
-    let g = gpu::Gpu::open(None).expect("a Vulkan adapter (lavapipe in CI)");
+    let g = gpu::Gpu::lavapipe().unwrap_or_else(|e| panic!("{e:#}"));
     same(
         &reference,
         &g.render(&gpu_tree, &s, &no_progress).unwrap(),
@@ -92,7 +94,7 @@ fn each_device_on_its_own_tree_renders_the_same_image() {
 #[test]
 fn cost_aov_counts_the_camera_ray_work_on_both_devices() {
     let c = water();
-    let g = gpu::Gpu::open(None).expect("a Vulkan adapter (lavapipe in CI)");
+    let g = gpu::Gpu::lavapipe().unwrap_or_else(|e| panic!("{e:#}"));
     for traversal in [Traversal::Full, Traversal::Short] {
         let s = RenderSettings { aov: Aov::Cost, traversal, spp: 2, ..settings() };
         let a = cpu::render(&c, &s, &no_progress).unwrap();

@@ -1,11 +1,13 @@
 //! The sampler: shuffled Owen-scrambled Sobol points (`shared::sobol`) must keep the estimate
 //! unbiased and lower its error at equal samples against independent uniforms, and both samplers
 //! must give the same bits on the CPU and the GPU (lavapipe in CI).
-use kdtrace::camera::Camera;
-use kdtrace::kdbuild::BuildSettings;
-use kdtrace::render::{Compiled, RenderSettings, Rendered, SamplerKind};
-use kdtrace::{cpu, gpu, load};
-use shared::glam::Vec3;
+use kdtrace::{
+    kdbuild::BuildSettings,
+    load,
+    render::{cpu, gpu, Compiled, Rendered},
+    settings::{camera::Camera, RenderSettings, SamplerKind},
+};
+use shared::glam::DVec3;
 use std::path::PathBuf;
 
 fn no_progress(_: u64, _: u64) {}
@@ -17,9 +19,9 @@ fn cornell() -> Compiled {
 
 fn settings(sampler: SamplerKind, seed: u32, spp: u32, side: u32) -> RenderSettings {
     let camera = Camera {
-        eye: Vec3::new(0.278, 0.273, 0.8),
-        target: Vec3::new(0.278, 0.273, 0.0),
-        up: Vec3::Y,
+        eye: DVec3::new(0.278, 0.273, 0.8),
+        target: DVec3::new(0.278, 0.273, 0.0),
+        up: DVec3::Y,
         fov_deg: 39.3076,
     };
     RenderSettings {
@@ -85,7 +87,7 @@ fn sobol_is_unbiased_and_beats_independent_sampling_at_equal_samples() {
 
 #[test]
 fn both_samplers_are_bit_identical_on_cpu_and_gpu() {
-    let g = gpu::Gpu::open(None).expect("a Vulkan adapter (lavapipe in CI)");
+    let g = gpu::Gpu::lavapipe().unwrap_or_else(|e| panic!("{e:#}"));
     let c = cornell();
     for sampler in [SamplerKind::Sobol, SamplerKind::Independent] {
         let s = settings(sampler, 7, 8, 24);

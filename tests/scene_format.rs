@@ -1,20 +1,25 @@
 //! TOML scene files: a scene file and its OBJ give the same scene, `export` round-trips,
 //! transforms and material overrides do what the README says, flags override the file, and
 //! degenerate geometry is dropped with a counted warning.
-use kdtrace::kdbuild::BuildSettings;
-use kdtrace::local_frame::point_to_world;
-use kdtrace::scene::Scene;
-use kdtrace::scene_settings::SceneSettings;
-use kdtrace::{load, Loaded};
-use shared::glam::{Vec3, Vec4};
-use shared::triangle::geometric_normal;
-use shared::vecmath::xyz;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn repo(rel: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..").join(rel)
-}
+#[path = "common/paths.rs"]
+mod paths;
+use kdtrace::{
+    kdbuild::BuildSettings,
+    load,
+    scene::{local_frame::point_to_world, Scene},
+    settings::scene::SceneSettings,
+    Loaded,
+};
+use paths::{mesh, repo};
+use shared::{
+    glam::{DVec3, Vec3, Vec4},
+    triangle::geometric_normal,
+    vecmath::xyz,
+};
+use std::{
+    path::{Path, PathBuf},
+    process::{Command, Output},
+};
 
 fn tmp_dir(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("kdtrace-scene-{}", std::process::id())).join(name);
@@ -44,7 +49,7 @@ fn assert_same_scene(a: &Scene, b: &Scene, what: &str) {
     assert!(light(a) == light(b), "{what}: lights differ");
 }
 
-fn resolved(l: &Loaded) -> kdtrace::render::RenderSettings {
+fn resolved(l: &Loaded) -> kdtrace::settings::RenderSettings {
     let (lo, hi) = l.compiled.world_bounds();
     l.settings.resolve(lo, hi).unwrap()
 }
@@ -67,7 +72,7 @@ fn the_cornell_scene_file_is_the_cornell_obj_with_its_camera() {
     let obj = loaded(&repo("scenes/cornell-box.obj"));
     assert_same_scene(&toml.compiled.scene, &obj.compiled.scene, "cornell-box.toml vs .obj");
     let s = resolved(&toml);
-    assert_eq!(s.camera.eye, Vec3::new(0.278, 0.273, 0.8));
+    assert_eq!(s.camera.eye, DVec3::new(0.278, 0.273, 0.8));
     assert_eq!((s.width, s.height, s.spp, s.max_bounces), (512, 512, 64, 6));
     assert_eq!(obj.settings, SceneSettings::default());
 }
@@ -107,7 +112,7 @@ fn every_scene_file_loads_and_export_round_trips() {
 
 #[test]
 fn an_obj_exports_to_a_scene_file_with_its_default_camera() {
-    let src = repo("../shared/scenes/CornellBox-Original/CornellBox-Original.obj");
+    let src = mesh("CornellBox-Original/CornellBox-Original.obj");
     let out = tmp_dir("export-obj").join("original.toml");
     let o = kdtrace(&["export", src.to_str().unwrap(), "--out", out.to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));
@@ -143,18 +148,18 @@ fn transforms_apply_scale_then_rotate_then_translate() {
     // The loaded scene is stored relative to its origin (`local_frame`): here z = 5 on every
     // vertex, so z moves to 0 and the origin holds the 5.
     let origin = l.compiled.origin;
-    assert_eq!(origin, Vec3::new(0.0, 0.0, 5.0));
+    assert_eq!(origin, DVec3::new(0.0, 0.0, 5.0));
     let xyz = |v: Vec4| point_to_world(v.truncate(), origin);
     // (1,0,0) → ×2 → (2,0,0) → 90° about z → (0,2,0) → +5 z → (0,2,5); (0,1,0) → (−1,0,5).
-    let close = |a: Vec3, b: Vec3| (a - b).length() < 1e-5;
-    assert!(close(xyz(t.v0), Vec3::new(0.0, 0.0, 5.0)), "{t:?}");
-    assert!(close(xyz(t.v1), Vec3::new(0.0, 2.0, 5.0)), "{t:?}");
-    assert!(close(xyz(t.v2), Vec3::new(-1.0, 0.0, 5.0)), "{t:?}");
+    let close = |a: DVec3, b: DVec3| (a - b).length() < 1e-5;
+    assert!(close(xyz(t.v0), DVec3::new(0.0, 0.0, 5.0)), "{t:?}");
+    assert!(close(xyz(t.v1), DVec3::new(0.0, 2.0, 5.0)), "{t:?}");
+    assert!(close(xyz(t.v2), DVec3::new(-1.0, 0.0, 5.0)), "{t:?}");
     // Uniform scale, and rotation about x before y: (0,1,0) → x 90° → (0,0,1) → y 90° → (1,0,0).
     std::fs::write(&scene, "[[mesh]]\nfile = \"tri.obj\"\nscale = 3\nrotate = [90, 90, 0]\n").unwrap();
     let l = loaded(&scene);
     let t = l.compiled.scene.triangles[0];
-    assert!(close(point_to_world(t.v2.truncate(), l.compiled.origin), Vec3::new(3.0, 0.0, 0.0)), "{t:?}");
+    assert!(close(point_to_world(t.v2.truncate(), l.compiled.origin), DVec3::new(3.0, 0.0, 0.0)), "{t:?}");
 }
 
 #[test]
@@ -261,7 +266,7 @@ fn flags_override_the_scene_file_which_overrides_the_defaults() {
         "0,0,10",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let (_, _, px) = kdtrace::image_io::read_exr(&exr).unwrap();
+    let (_, _, px) = kdtrace::image::io::read_exr(&exr).unwrap();
     assert!(px.iter().all(|p| (p[0] - 0.2).abs() < 1e-6), "environment not seen: {:?}", px[0]);
     let l = loaded(&scene);
     assert_eq!(l.settings.time_limit_s, Some(30.0));

@@ -4,14 +4,16 @@
 //! diverge. `--time-limit` stops on whole samples: the image equals a fixed-spp render of the spp
 //! it reached. `render --variance` and `compare --variance` test a render against a converged
 //! reference from the command line.
-use kdtrace::camera::Camera;
-use kdtrace::kdbuild::BuildSettings;
-use kdtrace::metrics::two_image_test;
-use kdtrace::render::{Compiled, RenderSettings, Rendered};
-use kdtrace::{compile, cpu, gpu, obj};
-use shared::glam::Vec3;
-use std::path::PathBuf;
-use std::process::Command;
+use kdtrace::{
+    compile,
+    image::metrics::two_image_test,
+    kdbuild::BuildSettings,
+    render::{cpu, gpu, Compiled, Rendered},
+    scene::obj,
+    settings::{camera::Camera, RenderSettings},
+};
+use shared::glam::DVec3;
+use std::{path::PathBuf, process::Command};
 
 fn no_progress(_: u64, _: u64) {}
 
@@ -29,9 +31,9 @@ fn cornell(light_scale: f32) -> Compiled {
 
 fn settings(seed: u32, spp: u32) -> RenderSettings {
     let camera = Camera {
-        eye: Vec3::new(0.278, 0.273, 0.8),
-        target: Vec3::new(0.278, 0.273, 0.0),
-        up: Vec3::Y,
+        eye: DVec3::new(0.278, 0.273, 0.8),
+        target: DVec3::new(0.278, 0.273, 0.0),
+        up: DVec3::Y,
         fov_deg: 39.3076,
     };
     RenderSettings { width: 24, height: 24, spp, max_bounces: 4, seed, ..RenderSettings::with_camera(camera) }
@@ -143,9 +145,10 @@ fn render_variance_and_compare_test_a_render_against_the_mitsuba_reference() {
     assert_eq!(line["pixel_test"]["pass"], true, "{line}");
     assert!(o.status.success());
     // A variance image claiming 1/100 of the real noise makes the same render fail: exit 1.
-    let (w, h, px) = kdtrace::image_io::read_exr(&var).unwrap();
+    let (w, h, px) = kdtrace::image::io::read_exr(&var).unwrap();
     let tight = dir.join("tight.exr");
-    kdtrace::image_io::write_image(&tight, w, h, &px.iter().map(|p| p.map(|v| v / 100.0)).collect::<Vec<_>>()).unwrap();
+    kdtrace::image::io::write_image(&tight, w, h, &px.iter().map(|p| p.map(|v| v / 100.0)).collect::<Vec<_>>())
+        .unwrap();
     let o = compare(&tight);
     assert_eq!(o.status.code(), Some(1), "{}", String::from_utf8_lossy(&o.stdout));
 }

@@ -7,22 +7,25 @@
 //!   (`shared::numerics::offset_ray_origin`) never hit the triangle they leave; rays leaving the
 //!   convex mesh outward hit nothing at all.
 //! - The f32 watertight test against an f64 reference intersector on random rays.
+//!
 //! Bigger runs of the same checks: `bench/stress.sh`.
-use kdtrace::compile;
-use kdtrace::kdbuild::BuildSettings;
-use kdtrace::procedural::icosphere;
-use kdtrace::render::Compiled;
-use kdtrace::scene::{diffuse, Scene};
-use kdtrace::transform::Placement;
+use kdtrace::{
+    compile,
+    kdbuild::BuildSettings,
+    render::Compiled,
+    scene::{diffuse, procedural::icosphere, round_triangle, transform::Placement, Scene, WorldTriangle},
+};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use rayon::prelude::*;
-use shared::glam::Vec3;
-use shared::layout::{Triangle, TRAVERSAL_FULL_STACK, TRAVERSAL_SHORT_STACK};
-use shared::numerics::offset_ray_origin;
-use shared::raycast::closest;
-use shared::triangle::{geometric_normal, hit_point, RayShear, TriangleHit};
-use shared::vecmath::xyz;
+use shared::{
+    glam::{DVec3, Vec3},
+    layout::{Triangle, TRAVERSAL_FULL_STACK, TRAVERSAL_SHORT_STACK},
+    numerics::offset_ray_origin,
+    raycast::closest,
+    triangle::{geometric_normal, hit_point, RayShear, TriangleHit},
+    vecmath::xyz,
+};
 
 /// Rays per configuration (the 10^6; `STRESS_RAYS` overrides it for bench runs).
 fn rays_per_config() -> usize {
@@ -40,9 +43,18 @@ fn configurations() -> Vec<(f32, f32)> {
     out
 }
 
+/// `tris` placed by `p` (in f64, each coordinate rounded to f32 once).
+fn placed(tris: Vec<Triangle>, p: Placement) -> Vec<Triangle> {
+    let mut world: Vec<WorldTriangle> =
+        tris.iter().map(|t| [t.v0, t.v1, t.v2].map(|v| v.truncate().as_dvec3())).collect();
+    p.apply(&mut world);
+    world.iter().map(round_triangle).collect()
+}
+
 fn sphere(scale: f32, shift: f32) -> Compiled {
-    let mut tris = icosphere(4);
-    Placement { scale: Vec3::splat(scale), translate: Vec3::splat(shift), ..Default::default() }.apply(&mut tris);
+    let p =
+        Placement { scale: DVec3::splat(scale as f64), translate: DVec3::splat(shift as f64), ..Default::default() };
+    let tris = placed(icosphere(4), p);
     let n = tris.len();
     let scene =
         Scene::new(tris, vec![0; n], vec![diffuse(Vec3::splat(0.5), Vec3::ZERO)], vec!["sphere".into()]).unwrap();
@@ -243,8 +255,8 @@ fn grazing(t: &Triangle, d: Vec3) -> bool {
 
 #[test]
 fn f32_hits_agree_with_an_f64_reference() {
-    let mut tris = icosphere(2);
-    Placement { scale: Vec3::splat(3.0), translate: Vec3::new(10.0, -4.0, 7.0), ..Default::default() }.apply(&mut tris);
+    let p = Placement { scale: DVec3::splat(3.0), translate: DVec3::new(10.0, -4.0, 7.0), ..Default::default() };
+    let tris = placed(icosphere(2), p);
     let n = tris.len();
     let c = compile(
         Scene::new(tris, vec![0; n], vec![diffuse(Vec3::splat(0.5), Vec3::ZERO)], vec!["s".into()]).unwrap(),

@@ -3,31 +3,33 @@
 //! with no non-finite sample, block by block under a z-test with Šidák's correction, and
 //! coincident duplicate faces (CornellBox-Original stores each box's front twice) render like the
 //! deduplicated scene. Garbage rays are misses on every traversal.
-use kdtrace::camera::Camera;
-use kdtrace::kdbuild::BuildSettings;
-use kdtrace::local_frame::to_local;
-use kdtrace::render::{Compiled, RenderSettings, Rendered, Traversal};
-use kdtrace::scene::Scene;
-use kdtrace::transform::Placement;
-use kdtrace::verify::compare;
-use kdtrace::{compile, cpu, gpu, obj};
-use shared::glam::Vec3;
-use shared::layout::{RayQuery, RAY_ANY_HIT, RAY_SHORT_STACK, TRAVERSAL_FULL_STACK, TRAVERSAL_SHORT_STACK};
-use shared::raycast::{any, cast_ray, closest};
+#[path = "common/paths.rs"]
+mod paths;
+use kdtrace::{
+    compile,
+    kdbuild::BuildSettings,
+    render::{cpu, gpu, verify::compare, Compiled, Rendered},
+    scene::{local_frame::to_local, obj, round_triangle, transform::Placement, Scene, WorldTriangle},
+    settings::{camera::Camera, RenderSettings, Traversal},
+};
+use paths::{mesh, repo};
+use shared::{
+    glam::{DVec3, Vec3},
+    layout::{RayQuery, RAY_ANY_HIT, RAY_SHORT_STACK, TRAVERSAL_FULL_STACK, TRAVERSAL_SHORT_STACK},
+    raycast::{any, cast_ray, closest},
+};
 use statrs::distribution::{ContinuousCDF, Normal};
 use std::collections::HashSet;
-use std::path::PathBuf;
 
 fn no_progress(_: u64, _: u64) {}
 
-fn repo(rel: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..").join(rel)
-}
-
 /// The scene with every vertex scaled by `scale` and moved by `shift` on each axis.
 fn placed(scene: &Scene, scale: f32, shift: f32) -> Compiled {
-    let mut tris = scene.triangles.clone();
-    Placement { scale: Vec3::splat(scale), translate: Vec3::splat(shift), ..Default::default() }.apply(&mut tris);
+    let mut world: Vec<WorldTriangle> =
+        scene.triangles.iter().map(|t| [t.v0, t.v1, t.v2].map(|v| v.truncate().as_dvec3())).collect();
+    let (scale, shift) = (scale as f64, shift as f64);
+    Placement { scale: DVec3::splat(scale), translate: DVec3::splat(shift), ..Default::default() }.apply(&mut world);
+    let tris = world.iter().map(round_triangle).collect();
     let material_of = scene.info.iter().map(|i| i.material).collect();
     let s = Scene::new(tris, material_of, scene.materials.clone(), scene.material_names.clone()).unwrap();
     assert_eq!(s.triangles.len(), scene.triangles.len(), "scale {scale}, shift {shift}: triangles collapsed");
@@ -37,9 +39,9 @@ fn placed(scene: &Scene, scale: f32, shift: f32) -> Compiled {
 fn settings(scale: f32, shift: f32, seed: u32) -> RenderSettings {
     let p = |v: Vec3| v * scale + Vec3::splat(shift);
     let camera = Camera {
-        eye: p(Vec3::new(0.278, 0.273, 0.8)),
-        target: p(Vec3::new(0.278, 0.273, -0.2796)),
-        up: Vec3::Y,
+        eye: p(Vec3::new(0.278, 0.273, 0.8)).as_dvec3(),
+        target: p(Vec3::new(0.278, 0.273, -0.2796)).as_dvec3(),
+        up: DVec3::Y,
         fov_deg: 39.3076,
     };
     RenderSettings { width: 48, height: 48, spp: 64, max_bounces: 4, seed, ..RenderSettings::with_camera(camera) }
@@ -85,7 +87,7 @@ fn block_z(reference: &Rendered, test: &Rendered) -> f64 {
 
 /// |z| bound for all blocks of a 48×48 image at family-wise α = 0.01 (Šidák over 108 tests).
 fn z_bound() -> f64 {
-    let per_test = kdtrace::metrics::sidak_alpha(0.01, 108);
+    let per_test = kdtrace::image::metrics::sidak_alpha(0.01, 108);
     Normal::new(0.0, 1.0).unwrap().inverse_cdf(1.0 - per_test / 2.0)
 }
 
@@ -120,15 +122,15 @@ fn scaled_and_moved_cornell_boxes_render_like_the_plain_one() {
         } else {
             let back = placed(&world.scene, 1.0, -shift);
             let mut near = s;
-            near.camera.eye -= Vec3::splat(shift);
-            near.camera.target -= Vec3::splat(shift);
+            near.camera.eye -= DVec3::splat(shift as f64);
+            near.camera.target -= DVec3::splat(shift as f64);
             cpu::render(&back, &RenderSettings { seed: 1, ..near }, &no_progress).unwrap()
         };
         let c = if shift == 0.0 {
             world
         } else {
             let (scene, origin) = to_local(world.scene.clone());
-            assert!(origin.min_element() > 0.9 * shift, "the moved box was not brought home: origin {origin}");
+            assert!(origin.min_element() > 0.9 * shift as f64, "the moved box was not brought home: origin {origin}");
             let mut local = compile(scene, BuildSettings::default());
             local.origin = origin;
             let world_img = cpu::render(&world, &s, &no_progress).unwrap();
@@ -169,7 +171,7 @@ fn scaled_and_moved_cornell_boxes_render_like_the_plain_one() {
 
 #[test]
 fn coincident_duplicate_faces_render_like_the_deduplicated_scene() {
-    let path = repo("../shared/scenes/CornellBox-Original/CornellBox-Original.obj");
+    let path = mesh("CornellBox-Original/CornellBox-Original.obj");
     assert!(path.exists(), "{} is missing", path.display());
     let with = obj::load_obj(&path).unwrap();
     let mut seen = HashSet::new();
@@ -185,7 +187,8 @@ fn coincident_duplicate_faces_render_like_the_deduplicated_scene() {
     let duplicates = with.triangles.len() - tris.len();
     assert!(duplicates >= 4, "expected the boxes' duplicated fronts, found {duplicates} duplicates");
     let without = Scene::new(tris, mats, with.materials.clone(), with.material_names.clone()).unwrap();
-    let camera = Camera { eye: Vec3::new(0.0, 1.0, 3.4), target: Vec3::new(0.0, 1.0, 0.0), up: Vec3::Y, fov_deg: 39.3 };
+    let camera =
+        Camera { eye: DVec3::new(0.0, 1.0, 3.4), target: DVec3::new(0.0, 1.0, 0.0), up: DVec3::Y, fov_deg: 39.3 };
     let s = |seed| RenderSettings {
         width: 48,
         height: 48,

@@ -3,7 +3,7 @@
 //! reached. Whatever is accepted is rendered (4x4 pixels, 1 spp) on the CPU: a validated file
 //! must never make the renderer panic or index out of bounds.
 #![no_main]
-use kdtrace::{cpu, kdc};
+use kdtrace::render::{cpu, kdc};
 use libfuzzer_sys::fuzz_target;
 use std::path::Path;
 

@@ -2,8 +2,10 @@
 //! library `scene.mtl` it may name (a texture `tex.png` exists beside it). Whatever loads must
 //! also assemble into a scene and get a k-d tree.
 #![no_main]
-use kdtrace::files::InMemory;
-use kdtrace::{compile, kdbuild, obj, scene};
+use kdtrace::{
+    compile, kdbuild, scene,
+    scene::{files::InMemory, obj},
+};
 use libfuzzer_sys::fuzz_target;
 use std::path::Path;
 
@@ -14,7 +16,13 @@ fuzz_target!(|data: &[u8]| {
     };
     let files = InMemory::default().with("fuzz/scene.mtl", mtl_bytes).with("fuzz/tex.png", b"png".to_vec());
     if let Ok(mesh) = obj::parse_mesh(Path::new("fuzz/scene.obj"), obj_bytes, &files) {
-        if let Ok(s) = scene::Scene::new(mesh.triangles, mesh.material_of, mesh.materials, mesh.material_names) {
+        let world = scene::WorldScene {
+            triangles: mesh.triangles,
+            material_of: mesh.material_of,
+            materials: mesh.materials,
+            material_names: mesh.material_names,
+        };
+        if let Ok((s, _origin)) = world.into_local() {
             let c = compile(s, kdbuild::BuildSettings::default());
             assert!(!c.tree.nodes.is_empty());
         }

@@ -1,20 +1,22 @@
 //! rust-gpu entry points. Each one only unpacks its invocation id and buffers and calls `shared`.
 //!
 //! Every entry point declares the same bindings of group 0 (the host creates one explicit layout
-//! for all of them); an entry point that does not touch a buffer still names it.
+//! for all of them); an entry point that does not touch a buffer still names it. The binding
+//! numbers and workgroup sizes are `shared::layout::binding` and its group sizes, written out as
+//! literals because `#[spirv(...)]` takes no constants; the host's test
+//! `kernel_bindings_match_the_layout` checks them.
 #![no_std]
 
 use shared::glam::{UVec3, Vec4};
 use shared::integrator::render_pixel;
-use shared::layout::{KdNode, Light, Material, RayQuery, RayResult, RenderParams, TriBlock, Triangle, TriangleInfo};
+use shared::layout::{
+    KdNode, Light, Material, RayQuery, RayResult, RenderParams, TriBlock, Triangle, TriangleInfo, PERSISTENT_GROUP,
+};
 use shared::raycast::cast_ray;
 use shared::scene::SceneView;
 use spirv_std::arch::{atomic_i_add, workgroup_memory_barrier_with_group_sync};
 use spirv_std::memory::{Scope, Semantics};
 use spirv_std::spirv;
-
-/// Invocations per workgroup of the persistent kernel; also the batch one workgroup takes.
-const PERSISTENT_GROUP: u32 = 64;
 
 /// One invocation per pixel: adds this pass's samples to the pixel's running sum.
 #[spirv(compute(threads(8, 8, 1)))]

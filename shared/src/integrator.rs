@@ -163,7 +163,7 @@ fn shade_vertex(scene: &SceneView, p: &RenderParams, path: &mut Path, rng: &mut 
         if u_roulette >= survive {
             return false;
         }
-        path.beta = path.beta / survive;
+        path.beta /= survive;
     }
     path.origin = spawn;
     path.dir = bs.wi;

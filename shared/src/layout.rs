@@ -250,3 +250,40 @@ pub struct RayResult {
     pub restarts: u32,
     pub _pad: [u32; 3],
 }
+
+/// Group 0 of every kernel entry point: each buffer's binding. rust-gpu's `#[spirv(binding = N)]`
+/// takes integer literals only, so `kernel/src/lib.rs` writes these numbers out; the host's test
+/// `kernel_bindings_match_the_layout` reads the kernel's source and checks every one against
+/// this table (and the workgroup sizes below).
+pub mod binding {
+    pub const PARAMS: u32 = 0;
+    pub const NODES: u32 = 1;
+    pub const INDICES: u32 = 2;
+    pub const TRIANGLES: u32 = 3;
+    pub const INFO: u32 = 4;
+    pub const MATERIALS: u32 = 5;
+    pub const LIGHTS: u32 = 6;
+    pub const ACCUM: u32 = 7;
+    pub const PRIMARY: u32 = 8;
+    /// The rays of `cast_rays` (read-only).
+    pub const RAYS: u32 = 9;
+    pub const RESULTS: u32 = 10;
+    /// The persistent kernel's work counter.
+    pub const QUEUE: u32 = 11;
+    /// Running sums of squared radiance (per-pixel variance).
+    pub const ACCUM_SQ: u32 = 12;
+    /// The CPU leaf test's triangle blocks (read-only; a placeholder on the GPU).
+    pub const BLOCKS: u32 = 13;
+    /// Bindings in all: the uniform parameters, then storage buffers.
+    pub const COUNT: u32 = 14;
+    /// Storage bindings the kernel writes; every other storage binding is read-only.
+    pub const WRITABLE: [u32; 5] = [ACCUM, PRIMARY, RESULTS, QUEUE, ACCUM_SQ];
+}
+
+/// The render kernel's workgroup is `RENDER_GROUP_SIDE`² invocations, one per pixel.
+pub const RENDER_GROUP_SIDE: u32 = 8;
+/// The persistent kernel's workgroup size, which is also the batch of pixels one workgroup takes
+/// from the queue.
+pub const PERSISTENT_GROUP: u32 = 64;
+/// The ray-casting kernel's workgroup size.
+pub const CAST_GROUP: u32 = 64;

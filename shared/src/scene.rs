@@ -24,6 +24,7 @@ pub struct SceneView<'a> {
 impl<'a> SceneView<'a> {
     /// Binds the buffers; light count and bounds travel in the render parameters.
     #[inline]
+    #[allow(clippy::too_many_arguments)] // one argument per buffer binding
     pub fn new(
         params: &RenderParams,
         nodes: &'a [KdNode],

@@ -158,6 +158,7 @@ mod tests {
     /// Direction numbers v_1..v_5 of dimensions 1 and 2 as published in Joe & Kuo's
     /// `new-joe-kuo-6.21201` (in pbrt-v4's `SobolMatrices32`, top bytes), and van der Corput.
     #[test]
+    #[allow(clippy::needless_range_loop)]
     fn direction_numbers_match_the_published_matrices() {
         let published: [[u32; 5]; 3] =
             [[0x80, 0x40, 0x20, 0x10, 0x08], [0x80, 0xc0, 0xa0, 0xf0, 0x88], [0x80, 0xc0, 0x60, 0x90, 0xe8]];

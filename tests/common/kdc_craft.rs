@@ -1,7 +1,7 @@
 //! Crafting `.kdc` files for tests: a valid file's pieces, edited and resealed with a correct
 //! checksum, so that the checks behind the checksum are what refuses them.
 #![allow(dead_code)]
-use kdtrace::kdc::{self, FIXED_HEADER};
+use kdtrace::render::{kdc, kdc::FIXED_HEADER};
 
 /// A `.kdc` file taken apart: its JSON header and its section bytes.
 pub struct Parts {

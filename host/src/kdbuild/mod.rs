@@ -16,7 +16,7 @@ mod validate;
 
 pub use clip::Aabb;
 pub use stats::{stats, TreeStats};
-pub use validate::validate;
+pub use validate::{check_structure, validate};
 
 use serde::{Deserialize, Serialize};
 use shared::glam::Vec3;

@@ -1,8 +1,13 @@
 //! Every invariant the traversal in `shared::kdtree` relies on, checked on a built tree.
 //!
-//! Structure: child indices in range with the below child adjacent, every node reachable once,
-//! leaf runs inside the index list, triangle ids in range, split planes finite and inside (or on
-//! the boundary of) the node's voxel, depth within `KD_MAX_DEPTH`.
+//! Structure (`check_structure`, also what a `.kdc` file's tree must pass before it is used):
+//! child indices in range with the below child adjacent and the above child after it (so no
+//! path can cycle), every node reachable exactly once, leaf runs inside the index list, triangle
+//! ids in range, splits finite, depth within `KD_MAX_DEPTH`. Linear in the node count: a crafted
+//! tree that shares subtrees cannot make the walk explode.
+//!
+//! Geometry (`validate`, far slower): split planes inside (or on the boundary of) the node's
+//! voxel.
 //!
 //! Placement: each triangle is clipped exactly (in f64) to each node's voxel; a triangle whose
 //! clipped part reaches strictly into a child's half must be referenced in that child, and one
@@ -11,17 +16,65 @@
 //! all leaves along a ray, so it cannot miss a hit.
 use super::clip::{clip_polygon, to_f64, Aabb, Tri64};
 use super::KdTree;
-use shared::layout::{Triangle, KD_MAX_DEPTH};
+use shared::layout::{KdNode, Triangle, KD_MAX_DEPTH};
 
 /// Relative distance from a split plane within which a clipped part counts as lying in it:
 /// f64 clipping rounds the cut vertices by about 1e-16, far below the f32 rounding of the
 /// builder's boxes and the traversal's slack.
 const PLANE_TOLERANCE: f64 = 1e-12;
 
-pub fn validate(tree: &KdTree, triangles: &[Triangle]) -> Result<(), String> {
-    if tree.nodes.is_empty() {
+/// The tree's structure (module docs); returns its depth.
+pub fn check_structure(nodes: &[KdNode], indices: &[u32], triangles: usize) -> Result<u32, String> {
+    if let Some(&bad) = indices.iter().find(|&&t| t as usize >= triangles) {
+        return Err(format!("triangle index {bad} out of range ({triangles} triangles)"));
+    }
+    let n = nodes.len();
+    if n == 0 {
         return Err("no nodes".into());
     }
+    let mut stack: Vec<(u32, u32)> = Vec::with_capacity(2 * KD_MAX_DEPTH as usize + 2);
+    stack.push((0, 0));
+    let (mut visited, mut max_depth) = (0usize, 0u32);
+    while let Some((i, depth)) = stack.pop() {
+        let i = i as usize;
+        visited += 1;
+        if visited > n {
+            return Err(format!("more nodes reached than there are ({n}): subtrees are shared"));
+        }
+        if depth > KD_MAX_DEPTH {
+            return Err(format!("node {i} at depth {depth}, beyond {KD_MAX_DEPTH}"));
+        }
+        max_depth = max_depth.max(depth);
+        let node = *nodes.get(i).ok_or_else(|| format!("node index {i} out of range ({n} nodes)"))?;
+        if node.is_leaf() {
+            let (first, count) = (node.first_index() as u64, node.count() as u64);
+            if first + count > indices.len() as u64 {
+                return Err(format!(
+                    "leaf {i}: indices {first}..{} beyond the {} in the list",
+                    first + count,
+                    indices.len()
+                ));
+            }
+            continue;
+        }
+        if !node.split().is_finite() || node.axis() > 2 {
+            return Err(format!("node {i}: split {} on axis {} not finite", node.split(), node.axis()));
+        }
+        let above = node.above_child() as usize;
+        if i + 1 >= n || above <= i + 1 || above >= n {
+            return Err(format!("node {i}: children {} and {above} out of range ({n} nodes)", i + 1));
+        }
+        stack.push((above as u32, depth + 1));
+        stack.push((i as u32 + 1, depth + 1));
+    }
+    if visited != n {
+        return Err(format!("{} of {n} nodes unreachable", n - visited));
+    }
+    Ok(max_depth)
+}
+
+pub fn validate(tree: &KdTree, triangles: &[Triangle]) -> Result<(), String> {
+    check_structure(&tree.nodes, &tree.indices, triangles.len())?;
     let tris: Vec<Tri64> = triangles.iter().map(to_f64).collect();
     let root = Aabb { lo: tree.bounds_min.to_array(), hi: tree.bounds_max.to_array() };
     if (0..3).any(|k| !(root.lo[k] <= root.hi[k])) {
@@ -29,16 +82,9 @@ pub fn validate(tree: &KdTree, triangles: &[Triangle]) -> Result<(), String> {
     }
     let reaching_root: Vec<u32> =
         (0..tris.len() as u32).filter(|&t| clip_polygon(&tris[t as usize], &root).is_none_or(|p| p.len > 0)).collect();
-    let mut stack = vec![(0usize, root, 0u32, reaching_root)];
-    let mut visited = vec![false; tree.nodes.len()];
-    while let Some((i, voxel, depth, reaching)) = stack.pop() {
-        let n = *tree.nodes.get(i).ok_or_else(|| format!("node index {i} out of range"))?;
-        if std::mem::replace(&mut visited[i], true) {
-            return Err(format!("node {i} is reachable twice (cycle or shared child)"));
-        }
-        if depth > KD_MAX_DEPTH {
-            return Err(format!("node {i} at depth {depth} > {KD_MAX_DEPTH}"));
-        }
+    let mut stack = vec![(0usize, root, reaching_root)];
+    while let Some((i, voxel, reaching)) = stack.pop() {
+        let n = tree.nodes[i];
         if n.is_leaf() {
             let listed = leaf_run(tree, i, triangles.len())?;
             for t in reaching {
@@ -53,9 +99,6 @@ pub fn validate(tree: &KdTree, triangles: &[Triangle]) -> Result<(), String> {
             return Err(format!("node {i}: split {s} on axis {k} outside [{}, {}]", voxel.lo[k], voxel.hi[k]));
         }
         let above = n.above_child() as usize;
-        if above <= i + 1 || above >= tree.nodes.len() {
-            return Err(format!("node {i}: above child {above} out of range"));
-        }
         let (below_voxel, above_voxel) = voxel.split(k, s);
         let tolerance = PLANE_TOLERANCE * (s as f64).abs().max(voxel.extent(k));
         let (mut below_ids, mut above_ids) = (Vec::new(), Vec::new());
@@ -91,11 +134,8 @@ pub fn validate(tree: &KdTree, triangles: &[Triangle]) -> Result<(), String> {
                 }
             }
         }
-        stack.push((i + 1, below_voxel, depth + 1, below_ids));
-        stack.push((above, above_voxel, depth + 1, above_ids));
-    }
-    if let Some(unreached) = visited.iter().position(|&v| !v) {
-        return Err(format!("node {unreached} is unreachable ({} nodes)", tree.nodes.len()));
+        stack.push((i + 1, below_voxel, below_ids));
+        stack.push((above, above_voxel, above_ids));
     }
     Ok(())
 }

@@ -7,8 +7,9 @@
 //! Alongside rays/s it reports the traversal's work per ray (nodes visited, triangles tested,
 //! restarts) and an ideal rate (`ideal_mrays_per_s`), our stand-in for Aila & Laine's simulated
 //! upper bound: measured/ideal shows what incoherence (divergence, cache misses) costs each kind.
-use crate::gpu::Gpu;
-use crate::render::{Compiled, RenderSettings, Traversal};
+use crate::render::gpu::Gpu;
+use crate::render::Compiled;
+use crate::settings::{RenderSettings, Traversal};
 use anyhow::{bail, Result};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -39,7 +40,7 @@ pub const AO_LENGTH: f32 = 0.1;
 pub fn make_rays(c: &Compiled, s: &RenderSettings, kind: RayKind, traversal: Traversal) -> Result<Vec<RayQuery>> {
     let p = c.params(s, 0, 1)?;
     let flags = if traversal == Traversal::Short { RAY_SHORT_STACK } else { 0 };
-    let eye = crate::local_frame::point_to_local(s.camera.eye, c.origin);
+    let eye = crate::scene::local_frame::point_to_local(s.camera.eye, c.origin);
     let camera: Vec<RayQuery> = (0..s.height)
         .flat_map(|y| (0..s.width).map(move |x| (x, y)))
         .map(|(x, y)| query(eye, primary_direction(&p, x as f32 + 0.5, y as f32 + 0.5), f32::MAX, flags))

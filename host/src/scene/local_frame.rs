@@ -2,6 +2,11 @@
 //! coordinates, a level tile at 1e5) is moved next to the origin before its tree is built, and
 //! the camera with it, so rendering runs on small numbers.
 //!
+//! Vertices, placements and the camera stay in f64 from the file to this move (`place`), and
+//! each coordinate is rounded to f32 once, after it: at easting 4e5 or northing 6e6 an f32 world
+//! coordinate is a 1/32 or 1/2 unit step, but the same point relative to the scene is exact to
+//! f32's 24 bits of its distance from the scene's origin.
+//!
 //! Why: every conservative bound in `shared::numerics` grows with the coordinates' magnitude, not
 //! the scene's size (pbrt-v4 §6.8). At 1e5 the bound that lifts spawned rays off a surface is
 //! about 0.04 units, 7% of a Cornell box, enough to shift contact shadows and corners visibly.
@@ -12,8 +17,9 @@
 //! coordinate's ulp is q or q/2 (q the ulp of the largest), the shift is a multiple of q, and each
 //! difference is a multiple of q/2 no larger than max |x| / 2 < 2^24 · q/2: representable. Axes
 //! that straddle or approach zero are left alone; they are not where precision is lost.
-use crate::scene::Scene;
-use shared::glam::Vec3;
+use crate::scene::{Scene, WorldTriangle};
+use shared::glam::{DVec3, Vec3};
+use shared::layout::Triangle;
 
 /// The exact shift of one axis spanning `lo..=hi`, or 0 when the axis is not far from zero.
 pub fn axis_shift(lo: f32, hi: f32) -> f32 {
@@ -30,36 +36,53 @@ pub fn axis_shift(lo: f32, hi: f32) -> f32 {
     ((centre / q).round() * q) as f32
 }
 
-/// The shift that brings bounds `lo..=hi` next to the origin (zero on axes left alone).
-pub fn shift_for(lo: Vec3, hi: Vec3) -> Vec3 {
-    Vec3::new(axis_shift(lo.x, hi.x), axis_shift(lo.y, hi.y), axis_shift(lo.z, hi.z))
+/// The shift that brings bounds `lo..=hi` next to the origin (zero on axes left alone). It is
+/// chosen on the bounds rounded to f32, so that a scene whose coordinates are f32 values moves
+/// exactly (module docs); coordinates with more digits are moved in f64 and rounded once.
+pub fn shift_for(lo: DVec3, hi: DVec3) -> DVec3 {
+    let axis = |l: f64, h: f64| axis_shift(l as f32, h as f32) as f64;
+    DVec3::new(axis(lo.x, hi.x), axis(lo.y, hi.y), axis(lo.z, hi.z))
 }
 
-/// `scene` moved by minus its shift, and the shift (the world position of the new origin).
-pub fn to_local(mut scene: Scene) -> (Scene, Vec3) {
-    let origin = shift_for(scene.bounds_min, scene.bounds_max);
-    if origin == Vec3::ZERO {
+/// The world triangles in the local frame, each coordinate rounded to f32 once, and the world
+/// position of the frame's origin. Non-finite coordinates are left for `Scene::new` to refuse.
+pub fn place(world: &[WorldTriangle]) -> (Vec<Triangle>, DVec3) {
+    let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+    for v in world.iter().flatten().filter(|v| v.is_finite()) {
+        lo = lo.min(*v);
+        hi = hi.max(*v);
+    }
+    let origin = if lo.x <= hi.x { shift_for(lo, hi) } else { DVec3::ZERO };
+    let local = |v: DVec3| point_to_local(v, origin).extend(0.0);
+    (world.iter().map(|t| Triangle { v0: local(t[0]), v1: local(t[1]), v2: local(t[2]) }).collect(), origin)
+}
+
+/// An f32 `scene` moved by minus its shift, and the shift (the world position of the new
+/// origin). Every move is exact here (module docs).
+pub fn to_local(mut scene: Scene) -> (Scene, DVec3) {
+    let origin = shift_for(scene.bounds_min.as_dvec3(), scene.bounds_max.as_dvec3());
+    if origin == DVec3::ZERO {
         return (scene, origin);
     }
-    let o = origin.extend(0.0);
+    let o = origin.as_vec3().extend(0.0);
     for t in &mut scene.triangles {
         t.v0 -= o;
         t.v1 -= o;
         t.v2 -= o;
     }
-    scene.bounds_min -= origin;
-    scene.bounds_max -= origin;
+    scene.bounds_min -= origin.as_vec3();
+    scene.bounds_max -= origin.as_vec3();
     (scene, origin)
 }
 
-/// A world-space point in the frame whose origin is `origin`, rounded once (in f64 first).
-pub fn point_to_local(p: Vec3, origin: Vec3) -> Vec3 {
-    (p.as_dvec3() - origin.as_dvec3()).as_vec3()
+/// A world-space point in the frame whose origin is `origin`, rounded once.
+pub fn point_to_local(p: DVec3, origin: DVec3) -> Vec3 {
+    (p - origin).as_vec3()
 }
 
-/// A local point back in world space, rounded once.
-pub fn point_to_world(p: Vec3, origin: Vec3) -> Vec3 {
-    (p.as_dvec3() + origin.as_dvec3()).as_vec3()
+/// A local point back in world space, in f64.
+pub fn point_to_world(p: Vec3, origin: DVec3) -> DVec3 {
+    p.as_dvec3() + origin
 }
 
 #[cfg(test)]
@@ -114,8 +137,33 @@ mod tests {
         assert!(local.bounds_max.abs().max_element() < 1.0, "{:?}", local.bounds_max);
         for (a, b) in scene.triangles.iter().zip(&local.triangles) {
             for (p, q) in [(a.v0, b.v0), (a.v1, b.v1), (a.v2, b.v2)] {
-                assert_eq!(point_to_world(q.truncate(), origin), p.truncate());
+                assert_eq!(point_to_world(q.truncate(), origin), p.truncate().as_dvec3());
             }
         }
+    }
+
+    #[test]
+    fn survey_coordinates_keep_their_digits() {
+        // Easting, elevation and northing of a site, and three corners a metre or so apart.
+        let site = DVec3::new(412_345.0, 12.5, 6_123_456.0);
+        let offsets = [
+            DVec3::new(0.123_456_789, 0.5, 0.987_654_321),
+            DVec3::new(1.75, 0.25, 0.015_625),
+            DVec3::new(0.3, 1.1, 1.7),
+        ];
+        let world: Vec<WorldTriangle> = vec![offsets.map(|o| site + o)];
+        let (local, _) = place(&world);
+        let local = [local[0].v0, local[0].v1, local[0].v2].map(|v| v.truncate().as_dvec3());
+        let rounded = world[0].map(|v| v.as_vec3().as_dvec3());
+        let (mut local_err, mut rounded_err) = (0f64, 0f64);
+        for k in 1..3 {
+            let shape = offsets[k] - offsets[0];
+            local_err = local_err.max(((local[k] - local[0]) - shape).abs().max_element());
+            rounded_err = rounded_err.max(((rounded[k] - rounded[0]) - shape).abs().max_element());
+        }
+        // The local frame keeps the shape to f32's step at a metre; f32 world coordinates
+        // would move corners by up to half of 0.5 m at northing 6e6.
+        assert!(local_err < 1e-6, "local frame: {local_err}");
+        assert!(rounded_err > 0.01, "f32 world coordinates: {rounded_err}");
     }
 }

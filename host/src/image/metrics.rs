@@ -18,7 +18,7 @@
 //! count, with Šidák's correction (Šidák 1967) so that the chance of any false rejection over the
 //! whole image is α. It uses Student's t with n − 1 degrees of freedom, which is exact for
 //! normal samples and becomes the z-test for large n.
-use crate::image_io::linear_to_srgb;
+use crate::image::io::linear_to_srgb;
 use anyhow::{bail, Result};
 use serde::Serialize;
 use statrs::distribution::{ContinuousCDF, StudentsT};
@@ -227,9 +227,9 @@ pub fn pixel_test(reference: &LinearImage, stats: &PixelStats, alpha: f64) -> Re
     let mut ps = Vec::with_capacity(reference.pixels.len() * 3);
     let mut untested = 0;
     for (i, r) in reference.pixels.iter().enumerate() {
-        for k in 0..3 {
+        for (k, &rk) in r.iter().enumerate() {
             match mean_test(
-                r[k] as f64,
+                rk as f64,
                 stats.mean.pixels[i][k] as f64,
                 stats.variance.pixels[i][k] as f64,
                 stats.count[i],

@@ -1,151 +1,26 @@
-//! What both renderers share on the host: settings, the compiled scene, render parameters and
-//! the accumulated result.
-use crate::camera::Camera;
+//! Rendering on the host: what both renderers share (the compiled scene, render parameters and
+//! the accumulated result), loading a scene into that form (`load`) or from a compiled `.kdc`
+//! file (`kdc`), the CPU reference (`cpu`), the wgpu runner of the rust-gpu kernel (`gpu`), the
+//! CPU ≡ GPU check (`verify`) and the ray-casting benchmark (`raybench`).
+pub mod cpu;
+pub mod gpu;
+pub mod kdc;
+pub mod load;
+pub mod raybench;
+pub mod verify;
+
 use crate::kdbuild::KdTree;
-use crate::local_frame::{point_to_local, point_to_world};
+use crate::scene::local_frame::{point_to_local, point_to_world};
 use crate::scene::Scene;
-use anyhow::{bail, Result};
+use crate::settings::{Aov, RenderSettings, Traversal};
+use anyhow::Result;
 use rayon::prelude::*;
-use shared::glam::{Vec3, Vec4};
+use shared::glam::{DVec3, Vec4};
 use shared::layout::{
     Light, RenderParams, TriBlock, Triangle, AOV_COST, AOV_RADIANCE, BLOCK_WIDTH, TRAVERSAL_FULL_STACK,
     TRAVERSAL_SHORT_STACK,
 };
-use shared::rng::{SAMPLER_INDEPENDENT, SAMPLER_SOBOL};
 use shared::scene::SceneView;
-
-/// Which k-d traversal renders (both return identical hits; they differ in speed).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Traversal {
-    /// The faster one for the device: the full stack on CPUs (the CPU path and lavapipe, where it
-    /// measured 5–25% faster; BENCHMARKS.md), the short stack on GPUs, whose threads hold far
-    /// less fast memory.
-    #[default]
-    Auto,
-    /// A stack of `shared::short_stack::SHORT_STACK` entries with restart (Horn et al. 2007).
-    Short,
-    /// A stack as deep as the tree.
-    Full,
-}
-
-impl Traversal {
-    /// `Auto` made concrete for a device that is (`cpu`) or is not a CPU.
-    pub fn resolve(self, cpu: bool) -> Traversal {
-        match self {
-            Traversal::Auto if cpu => Traversal::Full,
-            Traversal::Auto => Traversal::Short,
-            t => t,
-        }
-    }
-}
-
-/// How a pixel's samples are placed (the same numbers on the CPU and the GPU).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum SamplerKind {
-    /// Shuffled Owen-scrambled Sobol points, stratified per pixel and per dimension set for the
-    /// film and the first two vertices (Burley 2020; `shared::sobol`, `rng::SOBOL_SETS`): the
-    /// same mean, lower error at equal samples.
-    #[default]
-    Sobol,
-    /// Independent uniforms: each a hash of (pixel, sample, set, seed).
-    Independent,
-}
-
-impl SamplerKind {
-    pub fn tag(self) -> u32 {
-        match self {
-            SamplerKind::Sobol => SAMPLER_SOBOL,
-            SamplerKind::Independent => SAMPLER_INDEPENDENT,
-        }
-    }
-}
-
-/// How the GPU spreads pixels over invocations (the CPU always uses rayon over tiles).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Dispatch {
-    /// One invocation per pixel.
-    #[default]
-    Plain,
-    /// A fixed grid of workgroups pulling pixel batches from an atomic counter (Aila & Laine 2009).
-    Persistent,
-}
-
-/// What the image holds.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Aov {
-    /// Radiance (the render).
-    #[default]
-    Radiance,
-    /// The camera ray's traversal work: nodes visited (R), triangles tested (G), restarts (B).
-    Cost,
-}
-
-#[derive(Clone, Copy, Debug)]
-pub struct RenderSettings {
-    pub width: u32,
-    pub height: u32,
-    pub spp: u32,
-    /// Indirect bounces; 0 = direct light only.
-    pub max_bounces: u32,
-    pub seed: u32,
-    pub sampler: SamplerKind,
-    /// Bounce from which Russian roulette may end a path (Mitsuba's `rr_depth`).
-    pub rr_start: u32,
-    pub environment: Vec3,
-    pub camera: Camera,
-    pub traversal: Traversal,
-    pub dispatch: Dispatch,
-    pub aov: Aov,
-    /// Stop after this many seconds, between passes of whole samples; `spp` is then the most.
-    pub time_limit_s: Option<f64>,
-}
-
-/// Largest image side and sample count accepted: beyond these, buffers or counters overflow.
-pub const MAX_SIDE: u32 = 16384;
-pub const MAX_SPP: u32 = 1 << 20;
-
-impl RenderSettings {
-    /// The defaults of the command line (512×512, 64 spp, 6 bounces, seed 0, Russian roulette
-    /// from bounce 5, black environment) seen through `camera`.
-    pub fn with_camera(camera: Camera) -> Self {
-        Self {
-            width: 512,
-            height: 512,
-            spp: 64,
-            max_bounces: 6,
-            seed: 0,
-            sampler: SamplerKind::default(),
-            rr_start: 5,
-            environment: Vec3::ZERO,
-            camera,
-            traversal: Traversal::default(),
-            dispatch: Dispatch::default(),
-            aov: Aov::default(),
-            time_limit_s: None,
-        }
-    }
-
-    pub fn check(&self) -> Result<()> {
-        if self.width == 0 || self.height == 0 || self.width > MAX_SIDE || self.height > MAX_SIDE {
-            bail!("resolution {}x{} must be within 1..={MAX_SIDE} on each side", self.width, self.height);
-        }
-        if self.spp == 0 || self.spp > MAX_SPP {
-            bail!("spp {} must be within 1..={MAX_SPP}", self.spp);
-        }
-        if self.max_bounces > 1024 {
-            bail!("bounces {} must be at most 1024", self.max_bounces);
-        }
-        Ok(())
-    }
-
-    pub fn aspect(&self) -> f32 {
-        self.width as f32 / self.height as f32
-    }
-}
 
 /// A scene ready to render: geometry, materials, lights and its k-d tree.
 pub struct Compiled {
@@ -157,8 +32,8 @@ pub struct Compiled {
     /// (`shared::layout::TriBlock`); derived from the tree, never stored.
     pub blocks: Vec<TriBlock>,
     /// World position of the scene's coordinate origin (`local_frame`): the scene and its tree
-    /// are stored relative to it, cameras are given in world space.
-    pub origin: Vec3,
+    /// are stored relative to it, cameras are given in world space (f64 both).
+    pub origin: DVec3,
 }
 
 impl Compiled {
@@ -173,11 +48,11 @@ impl Compiled {
             lights.push(Light::default());
         }
         let blocks = leaf_blocks(&tree.indices, &scene.triangles);
-        Self { scene, tree, lights, blocks, origin: Vec3::ZERO }
+        Self { scene, tree, lights, blocks, origin: DVec3::ZERO }
     }
 
     /// The scene's bounds in world space (what a default camera frames).
-    pub fn world_bounds(&self) -> (Vec3, Vec3) {
+    pub fn world_bounds(&self) -> (DVec3, DVec3) {
         (point_to_world(self.tree.bounds_min, self.origin), point_to_world(self.tree.bounds_max, self.origin))
     }
 
@@ -302,8 +177,8 @@ impl Rendered {
 
     /// Mean, per-sample variance and sample count of every pixel, for the per-pixel tests of
     /// `metrics`.
-    pub fn stats(&self) -> anyhow::Result<crate::metrics::PixelStats> {
-        use crate::metrics::{LinearImage, PixelStats};
+    pub fn stats(&self) -> anyhow::Result<crate::image::metrics::PixelStats> {
+        use crate::image::metrics::{LinearImage, PixelStats};
         Ok(PixelStats {
             mean: LinearImage::new(self.width, self.height, self.mean())?,
             variance: LinearImage::new(self.width, self.height, self.variance())?,

@@ -21,15 +21,15 @@
 //! crafted file can neither make the reader allocate absurd sizes nor make a renderer panic or
 //! read out of bounds. Validation only reads and is safe on any bytes, so it runs beside the
 //! checksum (rayon::join); a checksum mismatch is still what gets reported first.
-use crate::kdbuild::{BuildSettings, KdTree};
-use crate::obj::MAX_COORDINATE;
+use crate::kdbuild::{check_structure, BuildSettings, KdTree};
 use crate::render::Compiled;
+use crate::scene::obj::MAX_COORDINATE;
 use crate::scene::Scene;
-use crate::scene_settings::SceneSettings;
+use crate::settings::scene::SceneSettings;
 use anyhow::{anyhow, bail, Context, Result};
 use bytemuck::Pod;
 use serde::{Deserialize, Serialize};
-use shared::glam::{Vec3, Vec4};
+use shared::glam::{DVec3, Vec3, Vec4};
 use shared::layout::{KdNode, Light, Material, Triangle, TriangleInfo, KD_MAX_DEPTH, MATERIAL_DIFFUSE, NO_LIGHT};
 use std::path::Path;
 use xxhash_rust::xxh3::Xxh3;
@@ -62,9 +62,9 @@ struct Header {
     scene_bounds: [[f32; 3]; 2],
     tree_bounds: [[f32; 3]; 2],
     tree_depth: u32,
-    /// World position of the scene's origin (`local_frame`); absent in files from before it.
+    /// World position of the scene's origin (`local_frame`), f64; absent in files from before it.
     #[serde(default)]
-    origin: [f32; 3],
+    origin: [f64; 3],
     counts: Counts,
 }
 
@@ -401,7 +401,7 @@ impl Sections {
             bounds_max: Vec3::from(hi),
             dropped_degenerate: h.dropped_degenerate,
         };
-        Compiled { origin: Vec3::from(h.origin), ..Compiled::new(scene, tree) }
+        Compiled { origin: DVec3::from(h.origin), ..Compiled::new(scene, tree) }
     }
 }
 
@@ -422,7 +422,7 @@ fn validate(h: &Header, s: &Sections) -> Result<()> {
         Ok((lo, hi))
     };
     bounds(h.scene_bounds, "scene")?;
-    if !Vec3::from(h.origin).is_finite() {
+    if !DVec3::from(h.origin).is_finite() {
         bail!("scene origin {:?} is not finite", h.origin);
     }
     let (tree_lo, tree_hi) = bounds(h.tree_bounds, "tree")?;
@@ -486,59 +486,20 @@ fn check_scene(h: &Header, s: &Sections) -> Result<()> {
     Ok(())
 }
 
-/// What the traversal relies on, for every path from the root: the below child next in the
-/// array and the above child after it (so no path can cycle), leaf runs inside the index list,
-/// triangle ids in range, splits finite, depth within the traversal stack. The walk visits at
-/// most as many nodes as there are, so a crafted file that shares subtrees cannot make it
-/// explode, and it must visit all of them. Linear in the node count; split positions are not
-/// checked against their node's box (`kdbuild::validate` does that and triangle placement, far
-/// slower, and neither matters for memory safety).
+/// The tree's structure (`kdbuild::check_structure`, shared with `kdtrace tree --validate`), its
+/// stated depth and its bounds. Split positions are not checked against their node's box
+/// (`kdbuild::validate` does that and triangle placement, far slower, and neither matters for
+/// memory safety).
 fn check_tree(nodes: &[KdNode], indices: &[u32], triangles: usize, lo: Vec3, hi: Vec3, depth: u32) -> Result<()> {
-    if let Some(&bad) = indices.iter().find(|&&t| t as usize >= triangles) {
-        bail!("k-d tree: triangle index {bad} out of range ({triangles} triangles)");
-    }
-    if nodes.is_empty() {
-        bail!("k-d tree has no nodes");
-    }
     if depth > KD_MAX_DEPTH {
         bail!("k-d tree depth {depth} beyond {KD_MAX_DEPTH}");
     }
     if !lo.is_finite() || !hi.is_finite() {
         bail!("k-d tree bounds not finite");
     }
-    let n = nodes.len();
-    let mut stack: Vec<(u32, u32)> = Vec::with_capacity(2 * KD_MAX_DEPTH as usize + 2);
-    stack.push((0, 0));
-    let mut visited = 0usize;
-    while let Some((i, depth)) = stack.pop() {
-        let i = i as usize;
-        visited += 1;
-        if visited > n {
-            bail!("k-d tree: more nodes reached than there are ({n}): subtrees are shared");
-        }
-        if depth > KD_MAX_DEPTH {
-            bail!("k-d node {i} at depth {depth}, beyond {KD_MAX_DEPTH}");
-        }
-        let node = *nodes.get(i).ok_or_else(|| anyhow!("k-d node index {i} out of range ({n} nodes)"))?;
-        if node.is_leaf() {
-            let (first, count) = (node.first_index() as u64, node.count() as u64);
-            if first + count > indices.len() as u64 {
-                bail!("k-d leaf {i}: indices {first}..{} beyond the {} in the list", first + count, indices.len());
-            }
-            continue;
-        }
-        if !node.split().is_finite() {
-            bail!("k-d node {i}: split {} on axis {} not finite", node.split(), node.axis());
-        }
-        let above = node.above_child() as usize;
-        if i + 1 >= n || above <= i + 1 || above >= n {
-            bail!("k-d node {i}: children {} and {above} out of range ({n} nodes)", i + 1);
-        }
-        stack.push((above as u32, depth + 1));
-        stack.push((i as u32 + 1, depth + 1));
-    }
-    if visited != n {
-        bail!("k-d tree: {} of {n} nodes unreachable", n - visited);
+    let reached = check_structure(nodes, indices, triangles).map_err(|e| anyhow!("k-d tree: {e}"))?;
+    if reached > depth {
+        bail!("k-d tree reaches depth {reached}, beyond the {depth} its header states");
     }
     Ok(())
 }

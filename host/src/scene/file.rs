@@ -7,23 +7,20 @@
 //! `file:line:column` here. Unknown keys are errors (`deny_unknown_fields`), so a typo never
 //! silently falls back to a default. Every number is checked while it is read (finite, in range),
 //! and those checks carry the span of the offending value as well.
-use crate::files::Files;
-use crate::obj::{self, DEFAULT_ALBEDO, MAX_COORDINATE};
-use crate::render::{SamplerKind, MAX_SIDE, MAX_SPP};
-use crate::scene::{diffuse, Scene};
-use crate::scene_settings::SceneSettings;
-use crate::transform::Placement;
+use crate::scene::files::Files;
+use crate::scene::obj::{self, DEFAULT_ALBEDO, MAX_COORDINATE};
+use crate::scene::transform::Placement;
+use crate::scene::{diffuse, WorldScene};
+use crate::settings::scene::SceneSettings;
+use crate::settings::{SamplerKind, MAX_BOUNCES, MAX_SIDE, MAX_SPP};
 use anyhow::{anyhow, bail, Context, Result};
 use serde::{Deserialize, Serialize};
-use shared::glam::Vec3;
+use shared::glam::{DVec3, Vec3};
 use shared::layout::Material;
 use std::collections::BTreeMap;
 use std::ops::Range;
 use std::path::{Component, Path, PathBuf};
 use toml::Spanned;
-
-/// Largest bounce count accepted (as `RenderSettings::check`).
-pub const MAX_BOUNCES: u32 = 1024;
 
 /// A whole scene file.
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
@@ -145,8 +142,9 @@ impl From<Point> for [f64; 3] {
 }
 
 impl Point {
-    pub fn vec3(self) -> Vec3 {
-        Vec3::new(self.0[0] as f32, self.0[1] as f32, self.0[2] as f32)
+    /// The point as written, in f64 (rounded to f32 only in the scene's local frame).
+    pub fn dvec3(self) -> DVec3 {
+        DVec3::from(self.0)
     }
 }
 
@@ -377,9 +375,9 @@ pub fn parse(path: &Path, text: &str) -> Result<SceneFile> {
     toml::from_str(text).map_err(|e| anyhow!("{}: {}", location(path, text, e.span()), e.message().trim_end()))
 }
 
-/// A scene file turned into a scene.
+/// A scene file turned into a scene, still in world coordinates.
 pub struct Resolved {
-    pub scene: Scene,
+    pub scene: WorldScene,
     pub settings: SceneSettings,
     pub warnings: Vec<String>,
 }
@@ -405,9 +403,9 @@ pub fn settings_of(file: &SceneFile) -> SceneSettings {
         seed: r.seed,
         sampler: r.sampler,
         time_limit_s: r.time_limit.map(|t| t.0),
-        eye: c.eye.map(|p| f32x3(p.0)),
-        target: c.target.map(|p| f32x3(p.0)),
-        up: c.up.map(|p| f32x3(p.0)),
+        eye: c.eye.map(|p| p.0),
+        target: c.target.map(|p| p.0),
+        up: c.up.map(|p| p.0),
         fov_deg: c.fov.map(|f| f.0 as f32),
         environment: file.environment.map(|e| f32x3(e.0)),
     }
@@ -425,9 +423,9 @@ fn scene_material(m: &MaterialSection) -> Material {
 /// The mesh's placement.
 pub fn placement(m: &MeshSection) -> Placement {
     Placement {
-        scale: m.scale.map_or(Vec3::ONE, |s| vec3_of(s.factors())),
-        rotate_deg: m.rotate.map_or(Vec3::ZERO, Point::vec3),
-        translate: m.translate.map_or(Vec3::ZERO, Point::vec3),
+        scale: m.scale.map_or(DVec3::ONE, |s| DVec3::from(s.factors())),
+        rotate_deg: m.rotate.map_or(DVec3::ZERO, Point::dvec3),
+        translate: m.translate.map_or(DVec3::ZERO, Point::dvec3),
     }
 }
 
@@ -493,23 +491,20 @@ pub fn resolve(path: &Path, text: &str, file: &SceneFile, files: &dyn Files) -> 
         }
         let mut placed = mesh.triangles;
         placement(m).apply(&mut placed);
-        for t in &placed {
-            for v in [t.v0, t.v1, t.v2] {
-                if !v.is_finite() || v.abs().max_element() > MAX_COORDINATE {
-                    bail!(
-                        "{}: mesh {:?}: placed vertex {} is not finite or beyond ±{MAX_COORDINATE:e}",
-                        at(m.file.span()),
-                        m.file.get_ref(),
-                        v.truncate()
-                    );
-                }
+        for v in placed.iter().flatten() {
+            if !v.is_finite() || v.abs().max_element() > MAX_COORDINATE as f64 {
+                bail!(
+                    "{}: mesh {:?}: placed vertex {v} is not finite or beyond ±{MAX_COORDINATE:e}",
+                    at(m.file.span()),
+                    m.file.get_ref(),
+                );
             }
         }
         triangles.extend(placed);
         material_of.extend(mesh.material_of.iter().map(|&l| global[l as usize]));
         warnings.extend(mesh.warnings);
     }
-    let scene = Scene::new(triangles, material_of, materials, names).with_context(|| path.display().to_string())?;
+    let scene = WorldScene { triangles, material_of, materials, material_names: names };
     Ok(Resolved { scene, settings: settings_of(file), warnings })
 }
 
@@ -568,7 +563,7 @@ pub fn tidy(x: f32) -> f64 {
 
 /// A scene file stating `settings` in full and placing the meshes as given.
 pub fn with_settings(mut file: SceneFile, s: &SceneSettings) -> Result<SceneFile> {
-    let point = |v: Option<[f32; 3]>| v.map(|v| Point([tidy(v[0]), tidy(v[1]), tidy(v[2])]));
+    let point = |v: Option<[f64; 3]>| v.map(Point);
     let side = |v: Option<u32>| v.map(|v| Side::try_from(v as i64)).transpose();
     file.camera = CameraSection {
         eye: point(s.eye),

@@ -3,10 +3,13 @@
 //! Each pass dispatches one invocation per pixel that adds a few samples to the pixel's running
 //! sum in a storage buffer, so progress can be reported between passes and no single dispatch
 //! runs long enough to trip a driver watchdog. The sum is read back once at the end.
-use crate::render::{Compiled, Dispatch, Progress, RenderSettings, Rendered};
+use crate::render::{Compiled, Progress, Rendered};
+use crate::settings::{Dispatch, RenderSettings};
 use anyhow::{anyhow, bail, Context, Result};
 use shared::glam::Vec4;
-use shared::layout::{RayQuery, RayResult, RenderParams, TriBlock};
+use shared::layout::{
+    binding, RayQuery, RayResult, RenderParams, TriBlock, CAST_GROUP, PERSISTENT_GROUP, RENDER_GROUP_SIDE,
+};
 use std::sync::OnceLock;
 use wgpu::util::DeviceExt;
 
@@ -14,15 +17,9 @@ static KERNEL_SPV: &[u8] = include_bytes!(env!("kernel.spv"));
 const RENDER_ENTRY: &str = "render_pass";
 const CAST_ENTRY: &str = "cast_rays";
 const PERSISTENT_ENTRY: &str = "render_persistent";
-/// The persistent kernel's workgroup size and batch (`threads(64, 1, 1)`).
-const PERSISTENT_GROUP: u32 = 64;
 /// Workgroups of the persistent kernel: enough to fill a large GPU (132 SMs × 16 groups of 64
 /// on an H100 is about 2000), few enough that each takes many batches on smaller ones.
 const PERSISTENT_GROUPS: u32 = 2048;
-/// The render kernel's workgroup side (`threads(8, 8, 1)`).
-const GROUP: u32 = 8;
-/// The ray-casting kernel's workgroup size (`threads(64, 1, 1)`).
-const CAST_GROUP: u32 = 64;
 /// Vulkan guarantees at least this many workgroups per dispatch dimension.
 const MAX_GROUPS_X: u32 = 65535;
 /// Samples per pixel added in one dispatch are chosen so a pass traces about this many paths.
@@ -51,24 +48,6 @@ pub struct Gpu {
     cast_pipeline: OnceLock<wgpu::ComputePipeline>,
     bind_layout: wgpu::BindGroupLayout,
     pub adapter: wgpu::AdapterInfo,
-}
-
-/// Group 0 of every entry point, in kernel order.
-mod binding {
-    pub const PARAMS: u32 = 0;
-    pub const ACCUM: u32 = 7;
-    pub const PRIMARY: u32 = 8;
-    // 9: the rays of `cast_rays` (read-only).
-    pub const RESULTS: u32 = 10;
-    /// The persistent kernel's work counter.
-    pub const QUEUE: u32 = 11;
-    /// Running sums of squared radiance (per-pixel variance).
-    pub const ACCUM_SQ: u32 = 12;
-    // 13: the CPU leaf test's triangle blocks (read-only; a placeholder on the GPU).
-    /// Bindings in all: the uniform parameters, then storage buffers.
-    pub const COUNT: u32 = 14;
-    /// Storage bindings the kernel writes; every other storage binding is read-only.
-    pub const WRITABLE: [u32; 5] = [ACCUM, PRIMARY, RESULTS, QUEUE, ACCUM_SQ];
 }
 
 /// One explicit layout for every entry point. wgpu's automatic layout keeps only the bindings an
@@ -115,7 +94,25 @@ pub fn adapters() -> Vec<wgpu::AdapterInfo> {
     pollster::block_on(instance().enumerate_adapters(wgpu::Backends::PRIMARY)).iter().map(|a| a.get_info()).collect()
 }
 
+/// What Mesa's lavapipe calls itself (`llvmpipe (LLVM …)`): the one adapter on which the GPU
+/// kernel's images equal the CPU path's bit for bit (it neither fuses multiply-adds nor rounds
+/// division differently).
+pub const LAVAPIPE: &str = "llvmpipe";
+
 impl Gpu {
+    /// Opens lavapipe by name, for the checks that promise bit-identity with the CPU path; an
+    /// error (not another adapter) where it is not installed.
+    pub fn lavapipe() -> Result<Self> {
+        Self::open(Some(LAVAPIPE)).context(
+            "the bit-exact CPU/GPU checks need Mesa's lavapipe (scripts/setup.sh installs mesa-vulkan-drivers)",
+        )
+    }
+
+    /// Whether this adapter is lavapipe, where CPU and GPU results are bit-identical.
+    pub fn is_lavapipe(&self) -> bool {
+        self.adapter.name.to_lowercase().contains(LAVAPIPE)
+    }
+
     /// Opens the first adapter whose name contains `name` (case-insensitive), or the first one.
     pub fn open(name: Option<&str>) -> Result<Self> {
         let all = pollster::block_on(instance().enumerate_adapters(wgpu::Backends::PRIMARY));
@@ -233,7 +230,7 @@ impl Gpu {
     }
 
     fn check_size(&self, what: &str, bytes: usize) -> Result<()> {
-        let limit = self.device.limits().max_storage_buffer_binding_size as u64;
+        let limit = self.device.limits().max_storage_buffer_binding_size;
         if bytes as u64 > limit {
             bail!("{what}: {bytes} bytes exceed this adapter's storage-buffer limit of {limit} bytes");
         }
@@ -281,26 +278,25 @@ impl Gpu {
         accum_sq: &wgpu::Buffer,
     ) -> wgpu::BindGroup {
         let buffers = [
-            &s.params,
-            &s.nodes,
-            &s.indices,
-            &s.triangles,
-            &s.info,
-            &s.materials,
-            &s.lights,
-            accum,
-            primary,
-            rays,
-            results,
-            queue,
-            accum_sq,
-            &s.blocks,
+            (binding::PARAMS, &s.params),
+            (binding::NODES, &s.nodes),
+            (binding::INDICES, &s.indices),
+            (binding::TRIANGLES, &s.triangles),
+            (binding::INFO, &s.info),
+            (binding::MATERIALS, &s.materials),
+            (binding::LIGHTS, &s.lights),
+            (binding::ACCUM, accum),
+            (binding::PRIMARY, primary),
+            (binding::RAYS, rays),
+            (binding::RESULTS, results),
+            (binding::QUEUE, queue),
+            (binding::ACCUM_SQ, accum_sq),
+            (binding::BLOCKS, &s.blocks),
         ];
         debug_assert_eq!(buffers.len() as u32, binding::COUNT);
         let entries: Vec<wgpu::BindGroupEntry> = buffers
             .iter()
-            .enumerate()
-            .map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() })
+            .map(|&(binding, b)| wgpu::BindGroupEntry { binding, resource: b.as_entire_binding() })
             .collect();
         self.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("scene"),
@@ -363,9 +359,11 @@ impl Gpu {
             params.persistent_rounds = rounds;
             self.queue.write_buffer(&scene.params, 0, bytemuck::bytes_of(&params));
             match s.dispatch {
-                Dispatch::Plain => {
-                    self.dispatch(pipeline, &group, (s.width.div_ceil(GROUP), s.height.div_ceil(GROUP)))?
-                }
+                Dispatch::Plain => self.dispatch(
+                    pipeline,
+                    &group,
+                    (s.width.div_ceil(RENDER_GROUP_SIDE), s.height.div_ceil(RENDER_GROUP_SIDE)),
+                )?,
                 Dispatch::Persistent => {
                     self.queue.write_buffer(&work, 0, bytemuck::bytes_of(&[0u32; 4]));
                     self.dispatch(pipeline, &group, (persistent_groups, 1))?
@@ -446,5 +444,60 @@ impl Gpu {
         drop(data);
         staging.unmap();
         Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use shared::layout::{binding, CAST_GROUP, PERSISTENT_GROUP, RENDER_GROUP_SIDE};
+
+    /// The kernel's source, whose `#[spirv(...)]` attributes take literals only.
+    const KERNEL: &str = include_str!("../../../kernel/src/lib.rs");
+
+    fn layout_binding(name: &str) -> u32 {
+        match name {
+            "params" => binding::PARAMS,
+            "nodes" => binding::NODES,
+            "indices" => binding::INDICES,
+            "triangles" => binding::TRIANGLES,
+            "info" => binding::INFO,
+            "materials" => binding::MATERIALS,
+            "lights" => binding::LIGHTS,
+            "accum" => binding::ACCUM,
+            "primary" => binding::PRIMARY,
+            "rays" => binding::RAYS,
+            "results" => binding::RESULTS,
+            "queue" => binding::QUEUE,
+            "accum_sq" => binding::ACCUM_SQ,
+            "blocks" => binding::BLOCKS,
+            other => panic!("kernel parameter {other:?} is not in shared::layout::binding"),
+        }
+    }
+
+    #[test]
+    fn kernel_bindings_match_the_layout() {
+        let mut seen = 0;
+        for line in KERNEL.lines() {
+            let Some(at) = line.find("binding = ") else { continue };
+            let rest = &line[at + "binding = ".len()..];
+            let number: u32 = rest[..rest.find(')').unwrap()].parse().unwrap();
+            let name = rest[rest.find("] ").unwrap() + 2..rest.find(':').unwrap()].trim();
+            assert_eq!(number, layout_binding(name), "kernel binds {name} at {number}");
+            assert!(number < binding::COUNT);
+            seen += 1;
+        }
+        assert!(seen >= 3 * 10, "expected the three entry points' bindings, found {seen}");
+        // Workgroup sizes: each entry point's `threads(...)` and the layout's constants.
+        let threads = |entry: &str| {
+            let at = KERNEL.find(&format!("pub fn {entry}(")).unwrap();
+            let attr = KERNEL[..at].rfind("threads(").unwrap();
+            let dims = &KERNEL[attr + "threads(".len()..];
+            let dims: Vec<u32> =
+                dims[..dims.find(')').unwrap()].split(',').map(|d| d.trim().parse().unwrap()).collect();
+            dims
+        };
+        assert_eq!(threads("render_pass"), [RENDER_GROUP_SIDE, RENDER_GROUP_SIDE, 1]);
+        assert_eq!(threads("render_persistent"), [PERSISTENT_GROUP, 1, 1]);
+        assert_eq!(threads("cast_rays"), [CAST_GROUP, 1, 1]);
     }
 }

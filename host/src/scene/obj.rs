@@ -9,11 +9,12 @@
 //!
 //! Format reference: Wavefront's "Object Files (.obj)" and "MTL material format" appendices
 //! (<https://paulbourke.net/dataformats/obj/>, <https://paulbourke.net/dataformats/mtl/>).
-use crate::files::{Disk, Files};
+use crate::scene::files::{Disk, Files};
+use crate::scene::WorldTriangle;
 use crate::scene::{diffuse, Scene};
 use anyhow::{anyhow, bail, Context, Result};
-use shared::glam::{Vec3, Vec4};
-use shared::layout::{Material, Triangle};
+use shared::glam::{DVec3, Vec3};
+use shared::layout::Material;
 use std::cell::RefCell;
 use std::io::{Cursor, ErrorKind};
 use std::path::{Path, PathBuf};
@@ -26,7 +27,9 @@ pub const MAX_COORDINATE: f32 = 1e18;
 /// One OBJ file's triangles with a material each, before they become (part of) a scene.
 #[derive(Clone, Debug)]
 pub struct Mesh {
-    pub triangles: Vec<Triangle>,
+    /// World coordinates as written (f64): rounded to f32 only once the scene is in its local
+    /// frame (`local_frame::place`).
+    pub triangles: Vec<WorldTriangle>,
     /// Per triangle, an index into `materials`.
     pub material_of: Vec<u32>,
     /// The MTL materials in library order, then the grey default (always last).
@@ -134,10 +137,12 @@ fn without_points_and_lines(text: &str) -> String {
     out
 }
 
-/// Loads an OBJ file as a scene of its own.
+/// Loads an OBJ file as a scene of its own, in world coordinates rounded to f32 (no local frame:
+/// for tests and tools that want the file's own coordinates).
 pub fn load_obj(path: &Path) -> Result<Scene> {
     let mesh = load_mesh(path, &Disk)?;
-    Scene::new(mesh.triangles, mesh.material_of, mesh.materials, mesh.material_names)
+    let triangles = mesh.triangles.iter().map(crate::scene::round_triangle).collect();
+    Scene::new(triangles, mesh.material_of, mesh.materials, mesh.material_names)
         .with_context(|| format!("{}", path.display()))
 }
 
@@ -192,13 +197,7 @@ pub fn parse_mesh(path: &Path, bytes: &[u8], files: &dyn Files) -> Result<Mesh> 
         }
         result
     };
-    let options = tobj::LoadOptions {
-        triangulate: true,
-        single_index: false,
-        ignore_points: true,
-        ignore_lines: true,
-        ..Default::default()
-    };
+    let options = tobj::LoadOptions { triangulate: true, single_index: false, ignore_points: true, ignore_lines: true };
     let (models, materials) = tobj::load_obj_buf(&mut Cursor::new(text.as_bytes()), &options, loader)
         .map_err(|e| anyhow!("{}: {e}", path.display()))?;
     if let Some(e) = problems.into_inner().into_iter().next() {
@@ -222,8 +221,8 @@ pub fn parse_mesh(path: &Path, bytes: &[u8], files: &dyn Files) -> Result<Mesh> 
     let mut textures = 0;
     for (i, m) in mtl.iter().enumerate() {
         let library = source.get(i).map(|p| p.as_path()).unwrap_or(path);
-        let kd = m.diffuse.unwrap_or([DEFAULT_ALBEDO; 3]);
-        let ke = m.emissive.unwrap_or([0.0; 3]);
+        let kd = m.diffuse.map_or([DEFAULT_ALBEDO; 3], |c| c.map(|x| x as f32));
+        let ke = m.emissive.map_or([0.0; 3], |c| c.map(|x| x as f32));
         for (what, v) in [("Kd", kd), ("Ke", ke)] {
             if v.iter().any(|x| !x.is_finite() || *x < 0.0 || *x > MAX_COORDINATE) {
                 bail!("{}: material {:?}: {what} {v:?} must be finite and non-negative", library.display(), m.name);
@@ -266,10 +265,10 @@ pub fn parse_mesh(path: &Path, bytes: &[u8], files: &dyn Files) -> Result<Mesh> 
             Some(id) if id < mtl.len() => id as u32,
             _ => default_material,
         };
-        let vertex = |i: u32| -> Result<Vec4> {
+        let vertex = |i: u32| -> Result<DVec3> {
             let i = i as usize;
             match mesh.positions.get(3 * i..3 * i + 3) {
-                Some(p) => Ok(Vec4::new(p[0], p[1], p[2], 0.0)),
+                Some(p) => Ok(DVec3::new(p[0], p[1], p[2])),
                 None => bail!(
                     "{}: object {:?}: vertex index {} out of range ({} vertices)",
                     path.display(),
@@ -279,8 +278,8 @@ pub fn parse_mesh(path: &Path, bytes: &[u8], files: &dyn Files) -> Result<Mesh> 
                 ),
             }
         };
-        for f in mesh.indices.chunks_exact(3) {
-            triangles.push(Triangle { v0: vertex(f[0])?, v1: vertex(f[1])?, v2: vertex(f[2])? });
+        for f in mesh.indices.as_chunks::<3>().0 {
+            triangles.push([vertex(f[0])?, vertex(f[1])?, vertex(f[2])?]);
             material_of.push(material);
         }
     }

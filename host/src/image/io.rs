@@ -124,7 +124,7 @@ pub fn read_pfm(path: &Path) -> Result<(u32, u32, Vec<[f32; 3]>)> {
     let width: u32 = tokens[1].parse().map_err(|_| bad("width is not a number"))?;
     let height: u32 = tokens[2].parse().map_err(|_| bad("height is not a number"))?;
     let scale: f32 = tokens[3].parse().map_err(|_| bad("scale is not a number"))?;
-    if width == 0 || height == 0 || width > crate::render::MAX_SIDE || height > crate::render::MAX_SIDE {
+    if width == 0 || height == 0 || width > crate::settings::MAX_SIDE || height > crate::settings::MAX_SIDE {
         return Err(bad(&format!("size {width}x{height} out of range")));
     }
     if !(scale.is_finite() && scale != 0.0) {

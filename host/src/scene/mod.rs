@@ -1,6 +1,18 @@
-//! The in-memory scene: world-space triangles, their materials, and the light table.
+//! Scene input: OBJ + MTL (`obj`), TOML scene files (`file`), mesh placement (`transform`), the
+//! local frame (`local_frame`), procedural test scenes (`procedural`) and file access (`files`).
+//!
+//! This module holds the in-memory scene: triangles in the scene's local frame (f32, as both
+//! devices read them), their materials and the light table; and the world-space scene it is made
+//! from, kept in f64 until it is placed (`WorldScene`).
+pub mod file;
+pub mod files;
+pub mod local_frame;
+pub mod obj;
+pub mod procedural;
+pub mod transform;
+
 use anyhow::{bail, Result};
-use shared::glam::{Vec3, Vec4};
+use shared::glam::{DVec3, Vec3, Vec4};
 use shared::layout::{Light, Material, Triangle, TriangleInfo, MATERIAL_DIFFUSE, NO_LIGHT};
 use shared::material::is_emissive;
 use shared::triangle::geometric_normal;
@@ -17,6 +29,35 @@ pub struct Scene {
     pub bounds_max: Vec3,
     /// Zero-area triangles dropped while loading.
     pub dropped_degenerate: usize,
+}
+
+/// A triangle in world coordinates, f64 as read and placed.
+pub type WorldTriangle = [DVec3; 3];
+
+/// `t` rounded to f32 once per coordinate.
+pub fn round_triangle(t: &WorldTriangle) -> Triangle {
+    let v = |p: DVec3| p.as_vec3().extend(0.0);
+    Triangle { v0: v(t[0]), v1: v(t[1]), v2: v(t[2]) }
+}
+
+/// A scene as read and placed, before it is moved next to the origin and rounded to f32
+/// (`into_local`).
+#[derive(Clone, Debug, Default)]
+pub struct WorldScene {
+    pub triangles: Vec<WorldTriangle>,
+    /// Per triangle, an index into `materials`.
+    pub material_of: Vec<u32>,
+    pub materials: Vec<Material>,
+    pub material_names: Vec<String>,
+}
+
+impl WorldScene {
+    /// The scene in its local frame (`local_frame::place`: moved in f64, each coordinate rounded
+    /// to f32 once) and the world position of that frame's origin.
+    pub fn into_local(self) -> Result<(Scene, DVec3)> {
+        let (triangles, origin) = crate::scene::local_frame::place(&self.triangles);
+        Ok((Scene::new(triangles, self.material_of, self.materials, self.material_names)?, origin))
+    }
 }
 
 pub fn diffuse(albedo: Vec3, emission: Vec3) -> Material {

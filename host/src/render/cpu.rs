@@ -1,6 +1,7 @@
 //! The CPU reference renderer: rayon over rows, each pixel through `shared::integrator`, the same
 //! function the GPU kernel runs. Non-finite samples are zeroed and logged with their pixel.
-use crate::render::{Compiled, Progress, RenderSettings, Rendered};
+use crate::render::{Compiled, Progress, Rendered};
+use crate::settings::RenderSettings;
 use anyhow::Result;
 use rayon::prelude::*;
 use shared::glam::Vec4;

@@ -1,0 +1,52 @@
+//! `kdtrace export`: a scene (.obj or .toml) as a TOML scene file that states every setting.
+use super::load;
+use crate::kdbuild::BuildSettings;
+use crate::scene::file;
+use crate::settings::SceneSettings;
+use crate::SceneKind;
+use anyhow::{anyhow, bail, Result};
+use clap::Args;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+#[derive(Args)]
+pub struct ExportArgs {
+    scene: PathBuf,
+    /// The TOML scene file to write (mesh paths are written relative to it).
+    #[arg(long)]
+    out: PathBuf,
+}
+
+pub fn run(e: ExportArgs) -> Result<ExitCode> {
+    if SceneKind::of(&e.out).ok() != Some(SceneKind::Toml) {
+        bail!("{}: export writes a .toml scene file", e.out.display());
+    }
+    let scene_file = match SceneKind::of(&e.scene)? {
+        SceneKind::Kdc => bail!(
+            "{}: a compiled scene keeps no mesh files and cannot be exported; export the scene it was compiled from",
+            e.scene.display()
+        ),
+        SceneKind::Obj => file::for_obj(&e.scene),
+        SceneKind::Toml => {
+            let text = std::fs::read_to_string(&e.scene)
+                .map_err(|err| anyhow!("{}: cannot read: {err}", e.scene.display()))?;
+            file::parse(&e.scene, &text)?
+        }
+    };
+    // Loading checks every mesh and resolves the camera framing that the file may leave open.
+    let loaded = load(&e.scene, BuildSettings::default())?;
+    let c = &loaded.compiled;
+    let (lo, hi) = c.world_bounds();
+    let resolved = loaded.settings.resolve(lo, hi)?;
+    let pinned = SceneSettings::pinned(&resolved, loaded.settings.time_limit_s);
+    let mut scene_file = file::with_settings(scene_file, &pinned)?;
+    file::rebase_meshes(&mut scene_file, &e.scene, &e.out)?;
+    let comment = format!(
+        "kdtrace scene file, written by `kdtrace export` from {}.\nSchema: README.md, \"Scene files\".",
+        e.scene.display()
+    );
+    let text = file::to_toml(&scene_file, &comment)?;
+    std::fs::write(&e.out, text).map_err(|err| anyhow!("{}: cannot write: {err}", e.out.display()))?;
+    eprintln!("{}: {} meshes, {} triangles", e.out.display(), scene_file.meshes.len(), c.scene.triangles.len());
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,150 @@
+//! The `kdtrace` command line: `render`, `verify`, `tree`, `rays`, `export`, `compile`, `compare`,
+//! `adapters`. One file per command; each prints text or, with `--json`, one line serialised
+//! from its report struct. Input errors exit with code 2, a failed check with 1.
+mod args;
+mod compare;
+mod compile;
+mod export;
+mod rays;
+mod render;
+mod tree;
+mod verify;
+
+use crate::render::{Compiled, Rendered};
+use crate::settings::RenderSettings;
+use crate::{kdbuild, Loaded};
+use anyhow::Result;
+use args::{Device, ImageArgs};
+use clap::{Parser, Subcommand};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::path::Path;
+use std::process::ExitCode;
+use std::time::Instant;
+
+#[derive(Parser)]
+#[command(name = "kdtrace", version, about = "A path tracer whose CPU reference and GPU kernel run the same Rust code")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render a scene (.obj, .toml or .kdc) to PNG (sRGB) or EXR (linear).
+    Render(render::RenderArgs),
+    /// Render on the CPU and the GPU with the same seed and report how well they agree.
+    Verify(verify::VerifyArgs),
+    /// Write a scene (.obj or .toml) as a TOML scene file stating every render setting.
+    Export(export::ExportArgs),
+    /// Parse a scene, build its k-d tree and write both to one binary .kdc file.
+    Compile(compile::CompileArgs),
+    /// List the GPU adapters wgpu can use.
+    Adapters,
+    /// Build a scene's k-d tree and report its statistics (and check it with --validate).
+    Tree(tree::TreeArgs),
+    /// Ray-casting throughput for primary, ambient-occlusion and diffuse rays (Aila & Laine).
+    Rays(rays::RaysArgs),
+    /// Compare a linear image (EXR or PFM) against a reference: RMSE, relMSE, MAE, ꟻLIP, NaN/Inf.
+    Compare(compare::CompareArgs),
+}
+
+/// Parses the command line, runs the command and maps its outcome to the exit code.
+pub fn run() -> ExitCode {
+    let result = match Cli::parse().command {
+        Command::Render(a) => render::run(a),
+        Command::Verify(a) => verify::run(a),
+        Command::Tree(a) => tree::run(a),
+        Command::Rays(a) => rays::run(a),
+        Command::Export(a) => export::run(a),
+        Command::Compile(a) => compile::run(a),
+        Command::Compare(a) => compare::run(a),
+        Command::Adapters => adapters(),
+    };
+    match result {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::from(2)
+        }
+    }
+}
+
+fn adapters() -> Result<ExitCode> {
+    for a in crate::render::gpu::adapters() {
+        println!("{} ({:?}, {:?}, driver {} {})", a.name, a.device_type, a.backend, a.driver, a.driver_info);
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Prints one report as a JSON line.
+fn print_json(report: &impl serde::Serialize) -> Result<()> {
+    println!("{}", serde_json::to_string(report)?);
+    Ok(())
+}
+
+/// Flags over the scene's own settings over the defaults, and how to render.
+fn settings(a: &ImageArgs, loaded: &Loaded) -> Result<RenderSettings> {
+    let (lo, hi) = loaded.compiled.world_bounds();
+    let mut s = loaded.settings.overridden_by(&a.scene).resolve(lo, hi)?;
+    s.traversal = a.traversal;
+    s.dispatch = a.dispatch;
+    s.aov = a.aov;
+    Ok(s)
+}
+
+/// Loads a scene, building its tree (unless stored) with `build`, and reports its warnings on
+/// stderr.
+fn load(path: &Path, build: kdbuild::BuildSettings) -> Result<Loaded> {
+    let loaded = crate::load(path, build)?;
+    for w in &loaded.warnings {
+        eprintln!("warning: {w}");
+    }
+    Ok(loaded)
+}
+
+fn progress_bar(quiet: bool, label: &str) -> ProgressBar {
+    if quiet {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::new(1);
+    bar.set_style(
+        ProgressStyle::with_template("{msg} [{bar:40}] {percent}% {elapsed_precise} eta {eta}")
+            .unwrap()
+            .progress_chars("=> "),
+    );
+    bar.set_message(label.to_string());
+    bar
+}
+
+/// A render on one device, with a progress bar unless `--json`.
+struct DeviceRun {
+    image: Rendered,
+    /// The CPU's thread count or the adapter's name.
+    adapter: String,
+    render_s: f64,
+}
+
+fn run_device(device: Device, c: &Compiled, s: &RenderSettings, a: &ImageArgs) -> Result<DeviceRun> {
+    let bar = progress_bar(a.json, device.name());
+    let report = |done: u64, total: u64| {
+        bar.set_length(total);
+        bar.set_position(done);
+    };
+    let run = match device {
+        Device::Cpu => {
+            let t = Instant::now();
+            let image = crate::render::cpu::render(c, s, &report)?;
+            let adapter = format!("cpu ({} threads)", rayon::current_num_threads());
+            DeviceRun { image, adapter, render_s: t.elapsed().as_secs_f64() }
+        }
+        Device::Gpu => {
+            let g = crate::render::gpu::Gpu::open(a.adapter.as_deref())?;
+            g.prepare(s.dispatch)?;
+            let t = Instant::now();
+            let image = g.render(c, s, &report)?;
+            DeviceRun { image, adapter: g.adapter.name.clone(), render_s: t.elapsed().as_secs_f64() }
+        }
+    };
+    bar.finish_and_clear();
+    Ok(run)
+}

@@ -1,0 +1,158 @@
+//! Render settings: what a render needs besides the scene (image size, sampling, camera,
+//! traversal), their built-in defaults and their limits, each defined once here. `scene` holds
+//! the optional form a scene file, a `.kdc` and the command line state, and how it resolves;
+//! `camera` the look-at camera.
+pub mod camera;
+pub mod scene;
+
+use anyhow::{bail, Result};
+use camera::Camera;
+use shared::glam::Vec3;
+use shared::rng::{SAMPLER_INDEPENDENT, SAMPLER_SOBOL};
+
+pub use scene::SceneSettings;
+
+/// Image width and height when neither the command line nor the scene sets them.
+pub const DEFAULT_WIDTH: u32 = 512;
+pub const DEFAULT_HEIGHT: u32 = 512;
+pub const DEFAULT_SPP: u32 = 64;
+/// Indirect bounces by default (Mitsuba's `max_depth` 8).
+pub const DEFAULT_BOUNCES: u32 = 6;
+pub const DEFAULT_SEED: u32 = 0;
+/// Bounce from which Russian roulette may end a path (Mitsuba's `rr_depth`).
+pub const RR_START: u32 = 5;
+/// Largest image side accepted: beyond it, buffers or counters overflow.
+pub const MAX_SIDE: u32 = 16384;
+/// Most samples per pixel accepted (also what a time-limited render without an spp may reach).
+pub const MAX_SPP: u32 = 1 << 20;
+/// Most indirect bounces accepted.
+pub const MAX_BOUNCES: u32 = 1024;
+
+/// Which k-d traversal renders (both return identical hits; they differ in speed).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Traversal {
+    /// The faster one for the device: the full stack on CPUs (the CPU path, where the two are
+    /// within a few per cent, and lavapipe, where the full stack is faster; BENCHMARKS.md), the
+    /// short stack on GPUs, whose threads hold far less fast memory.
+    #[default]
+    Auto,
+    /// A stack of `shared::short_stack::SHORT_STACK` entries with restart (Horn et al. 2007).
+    Short,
+    /// A stack as deep as the tree.
+    Full,
+}
+
+impl Traversal {
+    /// `Auto` made concrete for a device that is (`cpu`) or is not a CPU.
+    pub fn resolve(self, cpu: bool) -> Traversal {
+        match self {
+            Traversal::Auto if cpu => Traversal::Full,
+            Traversal::Auto => Traversal::Short,
+            t => t,
+        }
+    }
+}
+
+/// How a pixel's samples are placed (the same numbers on the CPU and the GPU).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SamplerKind {
+    /// Shuffled Owen-scrambled Sobol points, stratified per pixel and per dimension set for the
+    /// film and the first two vertices (Burley 2020; `shared::sobol`, `rng::SOBOL_SETS`): the
+    /// same mean, lower error at equal samples.
+    #[default]
+    Sobol,
+    /// Independent uniforms: each a hash of (pixel, sample, set, seed).
+    Independent,
+}
+
+impl SamplerKind {
+    pub fn tag(self) -> u32 {
+        match self {
+            SamplerKind::Sobol => SAMPLER_SOBOL,
+            SamplerKind::Independent => SAMPLER_INDEPENDENT,
+        }
+    }
+}
+
+/// How the GPU spreads pixels over invocations (the CPU always uses rayon over tiles).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Dispatch {
+    /// One invocation per pixel.
+    #[default]
+    Plain,
+    /// A fixed grid of workgroups pulling pixel batches from an atomic counter (Aila & Laine 2009).
+    Persistent,
+}
+
+/// What the image holds.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Aov {
+    /// Radiance (the render).
+    #[default]
+    Radiance,
+    /// The camera ray's traversal work: nodes visited (R), triangles tested (G), restarts (B).
+    Cost,
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct RenderSettings {
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    /// Indirect bounces; 0 = direct light only.
+    pub max_bounces: u32,
+    pub seed: u32,
+    pub sampler: SamplerKind,
+    /// Bounce from which Russian roulette may end a path (Mitsuba's `rr_depth`).
+    pub rr_start: u32,
+    pub environment: Vec3,
+    pub camera: Camera,
+    pub traversal: Traversal,
+    pub dispatch: Dispatch,
+    pub aov: Aov,
+    /// Stop after this many seconds, between passes of whole samples; `spp` is then the most.
+    pub time_limit_s: Option<f64>,
+}
+
+impl RenderSettings {
+    /// The built-in defaults (the `DEFAULT_*` constants, Russian roulette from `RR_START`, black
+    /// environment) seen through `camera`.
+    pub fn with_camera(camera: Camera) -> Self {
+        Self {
+            width: DEFAULT_WIDTH,
+            height: DEFAULT_HEIGHT,
+            spp: DEFAULT_SPP,
+            max_bounces: DEFAULT_BOUNCES,
+            seed: DEFAULT_SEED,
+            sampler: SamplerKind::default(),
+            rr_start: RR_START,
+            environment: Vec3::ZERO,
+            camera,
+            traversal: Traversal::default(),
+            dispatch: Dispatch::default(),
+            aov: Aov::default(),
+            time_limit_s: None,
+        }
+    }
+
+    pub fn check(&self) -> Result<()> {
+        if self.width == 0 || self.height == 0 || self.width > MAX_SIDE || self.height > MAX_SIDE {
+            bail!("resolution {}x{} must be within 1..={MAX_SIDE} on each side", self.width, self.height);
+        }
+        if self.spp == 0 || self.spp > MAX_SPP {
+            bail!("spp {} must be within 1..={MAX_SPP}", self.spp);
+        }
+        if self.max_bounces > MAX_BOUNCES {
+            bail!("bounces {} must be at most {MAX_BOUNCES}", self.max_bounces);
+        }
+        Ok(())
+    }
+
+    pub fn aspect(&self) -> f32 {
+        self.width as f32 / self.height as f32
+    }
+}

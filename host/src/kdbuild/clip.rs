@@ -383,7 +383,7 @@ mod tests {
         for trial in 0..20000 {
             let t: Tri64 = [(); 3].map(|_| [(); 3].map(|_| (coordinate() as f32) as f64));
             let k = trial % 3;
-            let pos = [0.5f32, 0.25, 0.0, 1.0, 0.7071][trial % 5];
+            let pos = [0.5f32, 0.25, 0.0, 1.0, std::f32::consts::FRAC_1_SQRT_2][trial % 5];
             let voxel = unit();
             let Some(split) = split_boxes(&t, &voxel, k, pos, &mut bufs) else { continue };
             let (below, above) = voxel.split(k, pos);

@@ -9,8 +9,8 @@
 //! positions and the partition reads codes by reference.
 
 /// Lists shorter than this are better sorted otherwise (the builder sorts its events as integers,
-/// `sah::sort_events`): three passes over 2048-entry histograms cost more than sorting a few
-/// hundred events directly.
+/// `sah::event::sort_events`): three passes over 2048-entry histograms cost more than sorting a
+/// few hundred events directly.
 pub const RADIX_MIN: usize = 512;
 
 /// Bits of the key per pass: 11 + 11 + 12 = 34.
@@ -59,7 +59,7 @@ pub fn sort_by_key34<T: Copy>(items: &mut Vec<T>, tmp: &mut Vec<T>, key_of: impl
         let mask = (1u64 << bits) - 1;
         let counts = &mut counts[p << 12..(p << 12) + (1 << bits)];
         // A pass whose digit is the same for every key would move nothing.
-        if counts.iter().any(|&c| c == n) {
+        if counts.contains(&n) {
             continue;
         }
         let mut sum = 0;

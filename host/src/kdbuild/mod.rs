@@ -168,29 +168,7 @@ impl LeafTests {
     #[inline]
     pub fn count(self, n: usize) -> usize {
         debug_assert!((n as u64 + self.round) < 1 << 32);
-        ((n as u64 + self.round) * self.magic >> self.shift) as usize
-    }
-}
-
-#[cfg(test)]
-mod leaf_tests_tests {
-    use super::LeafTests;
-
-    /// The multiply and shift give ⌈n / block⌉ for every width the settings allow, at small
-    /// counts, around multiples of the width and up to the largest count a build can ask.
-    #[test]
-    fn leaf_tests_divide_exactly() {
-        for block in 1..=64usize {
-            let tests = LeafTests::new(block);
-            let mut counts: Vec<usize> = (0..5000).collect();
-            for m in [1usize << 10, 1 << 20, (1 << 30) / block] {
-                counts.extend((m * block).saturating_sub(3)..m * block + 3);
-            }
-            counts.push((1 << 30) - 1);
-            for n in counts {
-                assert_eq!(tests.count(n), n.div_ceil(block), "{n} triangles in blocks of {block}");
-            }
-        }
+        (((n as u64 + self.round) * self.magic) >> self.shift) as usize
     }
 }
 
@@ -238,7 +216,7 @@ pub fn align_leaves(tree: &mut KdTree) {
     let width = BLOCK_WIDTH as usize;
     let mut out = Vec::with_capacity(tree.indices.len() + tree.indices.len() / 2);
     let pad = |out: &mut Vec<u32>| {
-        while out.len() % width != 0 {
+        while !out.len().is_multiple_of(width) {
             out.push(*out.last().expect("a length that is not a multiple of the width is not zero"));
         }
     };
@@ -257,11 +235,33 @@ pub fn align_leaves(tree: &mut KdTree) {
 /// Whether `tree` is laid out as `align_leaves` lays it out.
 pub fn is_aligned(tree: &KdTree) -> bool {
     let width = BLOCK_WIDTH as usize;
-    tree.indices.len() % width == 0
+    tree.indices.len().is_multiple_of(width)
         && tree.nodes.iter().filter(|n| n.is_leaf() && n.count() > 0).all(|n| {
             let (first, end) = (n.first_index() as usize, (n.first_index() + n.count()) as usize);
             let padded = end.div_ceil(width) * width;
             first % width == 0
                 && tree.indices.get(end - 1..padded).is_some_and(|tail| tail.iter().all(|&id| id == tail[0]))
         })
+}
+
+#[cfg(test)]
+mod leaf_tests_tests {
+    use super::LeafTests;
+
+    /// The multiply and shift give ⌈n / block⌉ for every width the settings allow, at small
+    /// counts, around multiples of the width and up to the largest count a build can ask.
+    #[test]
+    fn leaf_tests_divide_exactly() {
+        for block in 1..=64usize {
+            let tests = LeafTests::new(block);
+            let mut counts: Vec<usize> = (0..5000).collect();
+            for m in [1usize << 10, 1 << 20, (1 << 30) / block] {
+                counts.extend((m * block).saturating_sub(3)..m * block + 3);
+            }
+            counts.push((1 << 30) - 1);
+            for n in counts {
+                assert_eq!(tests.count(n), n.div_ceil(block), "{n} triangles in blocks of {block}");
+            }
+        }
+    }
 }

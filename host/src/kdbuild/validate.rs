@@ -77,7 +77,7 @@ pub fn validate(tree: &KdTree, triangles: &[Triangle]) -> Result<(), String> {
     check_structure(&tree.nodes, &tree.indices, triangles.len())?;
     let tris: Vec<Tri64> = triangles.iter().map(to_f64).collect();
     let root = Aabb { lo: tree.bounds_min.to_array(), hi: tree.bounds_max.to_array() };
-    if (0..3).any(|k| !(root.lo[k] <= root.hi[k])) {
+    if (0..3).any(|k| root.lo[k].is_nan() || root.hi[k].is_nan() || root.lo[k] > root.hi[k]) {
         return Err(format!("root box {root:?} is empty or not finite"));
     }
     let reaching_root: Vec<u32> =

@@ -334,8 +334,110 @@ fn cases() -> Vec<Case> {
             vec!["compile".into(), repo("scenes/cornell-box.obj"), "--out".into(), "{dir}/x.bin".into()],
             &["x.bin", ".kdc"],
         ),
+        // ---- outputs, checked before any work ----
+        case(
+            "--out and --variance name the same file",
+            vec![],
+            vec![
+                "render".into(),
+                repo("scenes/cornell-box.obj"),
+                "--out".into(),
+                "{dir}/x.exr".into(),
+                "--variance".into(),
+                "{dir}/./x.exr".into(),
+            ],
+            &["x.exr", "name the same file"],
+        ),
+        case(
+            "an output folder that does not exist",
+            vec![],
+            vec!["render".into(), repo("scenes/cornell-box.obj"), "--out".into(), "{dir}/missing/x.png".into()],
+            &["missing", "output folder"],
+        ),
+        case(
+            "an output that is the input",
+            vec![("m.toml", &format!("[[mesh]]\nfile = {:?}\n", repo("scenes/cornell-box.obj")))],
+            vec!["export".into(), "{dir}/m.toml".into(), "--out".into(), "{dir}/m.toml".into()],
+            &["m.toml", "also an input"],
+        ),
+        // ---- scenes with nothing to render, on every device and command ----
+        case(
+            "all triangles degenerate (CPU)",
+            vec![("d.obj", DEGENERATE)],
+            render("d.obj"),
+            &["d.obj", "no renderable"],
+        ),
+        case(
+            "all triangles degenerate (GPU)",
+            vec![("d.obj", DEGENERATE)],
+            [render("d.obj"), vec!["--device".into(), "gpu".into()]].concat(),
+            &["d.obj", "no renderable"],
+        ),
+        case(
+            "all triangles degenerate (tree)",
+            vec![("d.obj", DEGENERATE)],
+            vec!["tree".into(), "{dir}/d.obj".into()],
+            &["d.obj", "no renderable"],
+        ),
+        case(
+            "all triangles degenerate (compile)",
+            vec![("d.obj", DEGENERATE)],
+            vec!["compile".into(), "{dir}/d.obj".into(), "--out".into(), "{dir}/d.kdc".into()],
+            &["d.obj", "no renderable"],
+        ),
+        // ---- strict values: fixed lengths, one albedo rule, tests that cannot be empty ----
+        toml_case(
+            "a camera eye of four numbers",
+            "[camera]\neye = [0, 0, 1, 7]\n[[mesh]]\nfile = \"m.obj\"\n",
+            &["s.toml:2:7", "exactly 3 numbers"],
+        ),
+        toml_case(
+            "an environment of four numbers",
+            "environment = [1, 1, 1, 1]\n[[mesh]]\nfile = \"m.obj\"\n",
+            &["s.toml:1:15", "exactly 3 numbers"],
+        ),
+        toml_case(
+            "an albedo of four numbers",
+            "[materials.a]\nalbedo = [0.5, 0.5, 0.5, 0.5]\n[[mesh]]\nfile = \"m.obj\"\nmaterial = \"a\"\n",
+            &["s.toml:2:10", "exactly 3 numbers"],
+        ),
+        case(
+            "an MTL albedo above one",
+            vec![("m.obj", &format!("mtllib m.mtl\n{TRI}usemtl a\nf 1 2 3\n")), ("m.mtl", "newmtl a\nKd 2 2 2\n")],
+            render("m.obj"),
+            &["m.mtl:2", "within 0..=1"],
+        ),
+        case(
+            "an MTL colour of four numbers",
+            vec![("m.obj", &format!("mtllib m.mtl\n{TRI}usemtl a\nf 1 2 3\n")), ("m.mtl", "newmtl a\nKe 1 1 1 1\n")],
+            render("m.obj"),
+            &["m.mtl:2", "three numbers, no more"],
+        ),
+        case(
+            "a per-pixel test of one sample",
+            vec![],
+            vec![
+                "compare".into(),
+                repo("tests/data/cornell-box-mitsuba-32.exr"),
+                repo("tests/data/cornell-box-mitsuba-32.exr"),
+                "--variance".into(),
+                repo("tests/data/cornell-box-mitsuba-32-stderr.exr"),
+                "--spp".into(),
+                "1".into(),
+            ],
+            &["--spp 1", "at least 2"],
+        ),
+        case(
+            "ray timing with no runs",
+            vec![],
+            vec!["rays".into(), repo("scenes/cornell-box.obj"), "--repeats".into(), "0".into()],
+            &["--repeats"],
+        ),
     ]
 }
+
+/// Three triangles, each of zero area.
+const DEGENERATE: &str = "v 0 0 0\nv 1 0 0\nv 2 0 0\nv 0 0 0\nf 1 2 3\nf 1 1 2\nf 4 1 1\n";
 
 #[test]
 fn every_broken_input_exits_2_naming_the_file_and_the_problem() {

@@ -19,7 +19,8 @@ fuzz_target!(|data: &[u8]| {
         s.height = Some(4);
         s.spp = Some(1);
         s.bounces = Some(s.bounces.unwrap_or(1).min(3));
-        if let Ok(rs) = s.resolve(c.tree.bounds_min, c.tree.bounds_max) {
+        let (lo, hi) = c.world_bounds();
+        if let Ok(rs) = s.resolve(lo, hi) {
             cpu::render(c, &rs, &|_, _| {}).expect("a validated scene renders");
         }
     }

@@ -4,7 +4,8 @@
 #![no_main]
 use kdtrace::{
     compile, kdbuild, scene,
-    scene::{files::InMemory, obj},
+    files::InMemory,
+    scene::obj,
 };
 use libfuzzer_sys::fuzz_target;
 use std::path::Path;

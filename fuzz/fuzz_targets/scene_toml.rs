@@ -1,7 +1,7 @@
 //! TOML scene files: parsing, checking, and resolving against an in-memory mesh `mesh.obj`
 //! (two MTL materials `a` and `b`, faces with and without `usemtl`), then the render settings.
 #![no_main]
-use kdtrace::scene::{file, files::InMemory};
+use kdtrace::{files::InMemory, scene::file};
 use libfuzzer_sys::fuzz_target;
 use std::path::Path;
 

@@ -7,6 +7,7 @@
 // test tests eight triangles; the pinned nightly has `core::simd`.
 #![feature(portable_simd)]
 pub mod cli;
+pub mod files;
 pub mod image;
 pub mod kdbuild;
 pub mod render;

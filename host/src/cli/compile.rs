@@ -1,5 +1,6 @@
 //! `kdtrace compile`: parse a scene, build its k-d tree, write both to one `.kdc` file.
 use super::{load, print_json};
+use crate::files;
 use crate::kdbuild::BuildSettings;
 use crate::render::kdc;
 use crate::SceneKind;
@@ -39,6 +40,7 @@ pub fn run(a: CompileArgs) -> Result<ExitCode> {
     if SceneKind::of(&a.out).ok() != Some(SceneKind::Kdc) {
         bail!("{}: compile writes a .kdc file", a.out.display());
     }
+    files::check_outputs(&[&a.out], &[&a.scene])?;
     let build = BuildSettings::default();
     let loaded = load(&a.scene, build)?;
     let t = Instant::now();

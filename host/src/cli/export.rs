@@ -1,5 +1,6 @@
 //! `kdtrace export`: a scene (.obj or .toml) as a TOML scene file that states every setting.
 use super::load;
+use crate::files;
 use crate::kdbuild::BuildSettings;
 use crate::scene::file;
 use crate::settings::SceneSettings;
@@ -21,6 +22,7 @@ pub fn run(e: ExportArgs) -> Result<ExitCode> {
     if SceneKind::of(&e.out).ok() != Some(SceneKind::Toml) {
         bail!("{}: export writes a .toml scene file", e.out.display());
     }
+    files::check_outputs(&[&e.out], &[&e.scene])?;
     let scene_file = match SceneKind::of(&e.scene)? {
         SceneKind::Kdc => bail!(
             "{}: a compiled scene keeps no mesh files and cannot be exported; export the scene it was compiled from",
@@ -28,9 +30,11 @@ pub fn run(e: ExportArgs) -> Result<ExitCode> {
         ),
         SceneKind::Obj => file::for_obj(&e.scene),
         SceneKind::Toml => {
-            let text = std::fs::read_to_string(&e.scene)
+            let bytes = files::read_input(&e.scene, files::MAX_TEXT_BYTES)
                 .map_err(|err| anyhow!("{}: cannot read: {err}", e.scene.display()))?;
-            file::parse(&e.scene, &text)?
+            let text = std::str::from_utf8(files::without_bom(&bytes))
+                .map_err(|err| anyhow!("{}: not UTF-8 text (byte {})", e.scene.display(), err.valid_up_to()))?;
+            file::parse(&e.scene, text)?
         }
     };
     // Loading checks every mesh and resolves the camera framing that the file may leave open.
@@ -46,7 +50,7 @@ pub fn run(e: ExportArgs) -> Result<ExitCode> {
         e.scene.display()
     );
     let text = file::to_toml(&scene_file, &comment)?;
-    std::fs::write(&e.out, text).map_err(|err| anyhow!("{}: cannot write: {err}", e.out.display()))?;
+    files::write_bytes(&e.out, text.as_bytes())?;
     eprintln!("{}: {} meshes, {} triangles", e.out.display(), scene_file.meshes.len(), c.scene.triangles.len());
     Ok(ExitCode::SUCCESS)
 }

@@ -1,12 +1,13 @@
 //! `kdtrace render`: one image on one device.
 use super::args::{Device, ImageArgs};
 use super::{load, print_json, run_device, settings};
+use crate::files;
 use crate::image::io;
 use crate::settings::{Aov, Dispatch, SamplerKind, Traversal};
 use anyhow::{bail, Result};
 use clap::Args;
 use serde::Serialize;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 #[derive(Args)]
@@ -71,6 +72,10 @@ pub fn run(r: RenderArgs) -> Result<ExitCode> {
             bail!("{}: the variance image is linear: write it as .exr", v.display());
         }
     }
+    // Every output is checked before the scene is even read: a render is never lost to a
+    // missing folder or a clash found at the end.
+    let outputs: Vec<&Path> = std::iter::once(r.out.as_path()).chain(r.variance.as_deref()).collect();
+    files::check_outputs(&outputs, &[&r.scene])?;
     let loaded = load(&r.scene, r.device.build_settings())?;
     let c = &loaded.compiled;
     let s = settings(&r.image, &loaded)?;

@@ -1,5 +1,7 @@
-//! Image output: PNG in 8-bit sRGB (clamped) and EXR in linear 32-bit float, chosen by extension.
-use anyhow::{anyhow, bail, Context, Result};
+//! Images: PNG in 8-bit sRGB (clamped) and EXR in linear 32-bit float out, chosen by extension,
+//! written through `files::write_atomic`; EXR and PFM in.
+use crate::files::{self, write_atomic, MAX_IMAGE_BYTES};
+use anyhow::{anyhow, bail, Result};
 use std::path::Path;
 
 /// The sRGB transfer function (IEC 61966-2-1) of a linear value, clamped to [0, 1].
@@ -51,21 +53,29 @@ pub fn write_image(path: &Path, width: u32, height: u32, rgb: &[[f32; 3]]) -> Re
     match ext.as_str() {
         "png" => {
             let bytes: Vec<u8> = rgb.iter().flat_map(|p| p.map(|c| (linear_to_srgb(c) * 255.0 + 0.5) as u8)).collect();
-            image::save_buffer_with_format(
-                path,
-                &bytes,
-                width,
-                height,
-                image::ExtendedColorType::Rgb8,
-                image::ImageFormat::Png,
-            )
-            .with_context(|| format!("{}: cannot write PNG", path.display()))
+            write_atomic(path, |w| {
+                image::write_buffer_with_format(
+                    w,
+                    &bytes,
+                    width,
+                    height,
+                    image::ExtendedColorType::Rgb8,
+                    image::ImageFormat::Png,
+                )
+                .map_err(|e| anyhow!("PNG: {e}"))
+            })
         }
-        "exr" => exr::prelude::write_rgb_file(path, width as usize, height as usize, |x, y| {
-            let p = rgb[y * width as usize + x];
-            (p[0], p[1], p[2])
-        })
-        .map_err(|e| anyhow!("{}: cannot write EXR: {e}", path.display())),
+        "exr" => write_atomic(path, |w| {
+            use exr::prelude::*;
+            let pixels = SpecificChannels::rgb(|p: Vec2<usize>| {
+                let c = rgb[p.y() * width as usize + p.x()];
+                (c[0], c[1], c[2])
+            });
+            Image::from_channels((width as usize, height as usize), pixels)
+                .write()
+                .to_buffered(w)
+                .map_err(|e| anyhow!("EXR: {e}"))
+        }),
         _ => bail!("{}: unknown image format (use .png or .exr)", path.display()),
     }
 }
@@ -73,6 +83,7 @@ pub fn write_image(path: &Path, width: u32, height: u32, rgb: &[[f32; 3]]) -> Re
 /// Reads a linear RGB EXR (as written by `write_image`): width, height and pixels.
 pub fn read_exr(path: &Path) -> Result<(u32, u32, Vec<[f32; 3]>)> {
     use exr::prelude::*;
+    files::input_size(path, MAX_IMAGE_BYTES).map_err(|e| anyhow!("{}: cannot read: {e}", path.display()))?;
     let image = read_first_rgba_layer_from_file(
         path,
         |resolution, _| (resolution.width(), vec![[0f32; 3]; resolution.width() * resolution.height()]),
@@ -97,7 +108,8 @@ pub fn read_linear_image(path: &Path) -> Result<(u32, u32, Vec<[f32; 3]>)> {
 /// (RGB) or `Pf` (grey, replicated to RGB), `width height`, and a scale whose sign gives the byte
 /// order (negative: little-endian); then rows of f32 from the bottom row up.
 pub fn read_pfm(path: &Path) -> Result<(u32, u32, Vec<[f32; 3]>)> {
-    let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    let bytes =
+        files::read_input(path, MAX_IMAGE_BYTES).map_err(|e| anyhow!("{}: cannot read: {e}", path.display()))?;
     let bad = |why: &str| anyhow!("{}: not a PFM file: {why}", path.display());
     // The header is three whitespace-separated tokens after the magic, then one whitespace byte.
     let mut pos = 0usize;
@@ -170,5 +182,5 @@ pub fn write_pfm(path: &Path, width: u32, height: u32, rgb: &[[f32; 3]]) -> Resu
             }
         }
     }
-    std::fs::write(path, out).with_context(|| format!("{}: cannot write PFM", path.display()))
+    files::write_bytes(path, &out)
 }

@@ -21,6 +21,7 @@
 //! crafted file can neither make the reader allocate absurd sizes nor make a renderer panic or
 //! read out of bounds. Validation only reads and is safe on any bytes, so it runs beside the
 //! checksum (rayon::join); a checksum mismatch is still what gets reported first.
+use crate::files;
 use crate::kdbuild::{check_structure, BuildSettings, KdTree};
 use crate::render::Compiled;
 use crate::scene::obj::MAX_COORDINATE;
@@ -128,14 +129,10 @@ pub fn encode(c: &Compiled, build_settings: &BuildSettings, settings: &SceneSett
     Ok(out)
 }
 
-/// Writes the file through a temporary name and a rename, so a crash never leaves half a file
-/// under the real name.
+/// Writes the file through a temporary file and a rename (`files::write_atomic`): a failure
+/// never leaves half a file under the real name, and leaves a previous file as it was.
 pub fn write(path: &Path, c: &Compiled, build_settings: &BuildSettings, settings: &SceneSettings) -> Result<()> {
-    let bytes = encode(c, build_settings, settings)?;
-    let mut tmp = path.as_os_str().to_owned();
-    tmp.push(".partial");
-    std::fs::write(&tmp, &bytes).with_context(|| format!("{}: cannot write", path.display()))?;
-    std::fs::rename(&tmp, path).with_context(|| format!("{}: cannot write", path.display()))
+    files::write_bytes(path, &encode(c, build_settings, settings)?)
 }
 
 /// Stores the payload's checksum in its slot (for writers, and for tests and fuzzers that craft
@@ -160,15 +157,11 @@ fn checksum(bytes: &[u8]) -> u64 {
 /// from the page cache, no file-sized intermediate buffer).
 pub fn read(path: &Path) -> Result<KdcScene> {
     let cannot = |e: std::io::Error| anyhow!("{}: cannot read: {e}", path.display());
+    // A regular file within the cap, checked before it is opened (a FIFO would block).
+    files::input_size(path, files::MAX_KDC_BYTES).map_err(cannot)?;
     let file = std::fs::File::open(path).map_err(cannot)?;
     let len = file.metadata().map_err(cannot)?.len();
-    #[cfg(unix)]
-    return decode_from(path, &file, len);
-    #[cfg(not(unix))]
-    {
-        drop(file);
-        decode(path, &std::fs::read(path).map_err(cannot)?)
-    }
+    decode_from(path, &file, len)
 }
 
 /// Decodes and validates a `.kdc` file's bytes; `path` only names it in messages.

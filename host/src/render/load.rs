@@ -1,9 +1,10 @@
 //! Loading a scene by its extension: an OBJ or a TOML scene file is read, placed in f64, moved to
 //! its local frame, rounded to f32 once and its k-d tree built; a `.kdc` is read as compiled.
 use super::kdc;
+use crate::files;
 use crate::kdbuild::{self, BuildSettings};
 use crate::render::Compiled;
-use crate::scene::{file, files, obj, Scene, WorldScene};
+use crate::scene::{file, obj, Scene, WorldScene};
 use crate::settings::SceneSettings;
 use anyhow::{bail, Result};
 use std::path::Path;
@@ -55,6 +56,9 @@ pub fn load(path: &Path, settings: BuildSettings) -> Result<Loaded> {
     let (scene, scene_settings, mut warnings) = match kind {
         SceneKind::Kdc => {
             let k = kdc::read(path)?;
+            if k.compiled.scene.triangles.is_empty() {
+                bail!("{}: the compiled scene has no triangles: nothing to render", path.display());
+            }
             return Ok(Loaded {
                 compiled: k.compiled,
                 settings: k.settings,
@@ -81,6 +85,15 @@ pub fn load(path: &Path, settings: BuildSettings) -> Result<Loaded> {
         }
     };
     let (scene, origin) = scene.into_local().map_err(|e| e.context(path.display().to_string()))?;
+    // Every device and command refuses a scene with nothing to hit (a GPU cannot even bind an
+    // empty triangle buffer): an error, not a black image.
+    if scene.triangles.is_empty() {
+        bail!(
+            "{}: no renderable triangles (all {} have zero area once placed)",
+            path.display(),
+            scene.dropped_degenerate
+        );
+    }
     if scene.dropped_degenerate > 0 {
         warnings.push(format!("{}: {} zero-area triangles dropped", path.display(), scene.dropped_degenerate));
     }

@@ -7,7 +7,7 @@
 //! `file:line:column` here. Unknown keys are errors (`deny_unknown_fields`), so a typo never
 //! silently falls back to a default. Every number is checked while it is read (finite, in range),
 //! and those checks carry the span of the offending value as well.
-use crate::scene::files::Files;
+use crate::files::Files;
 use crate::scene::obj::{self, DEFAULT_ALBEDO, MAX_COORDINATE};
 use crate::scene::transform::Placement;
 use crate::scene::{diffuse, WorldScene};
@@ -122,12 +122,18 @@ fn check_coordinate(what: &str, x: f64) -> Result<f32, String> {
 
 /// A finite point or vector, each component within ±1e18.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(try_from = "[f64; 3]", into = "[f64; 3]")]
+#[serde(try_from = "Vec<f64>", into = "[f64; 3]")]
 pub struct Point(pub [f64; 3]);
 
-impl TryFrom<[f64; 3]> for Point {
+/// Exactly three numbers: a fourth is an error, never dropped.
+fn three(v: &[f64], what: &str) -> Result<[f64; 3], String> {
+    v.try_into().map_err(|_| format!("{what} needs exactly 3 numbers, not {}", v.len()))
+}
+
+impl TryFrom<Vec<f64>> for Point {
     type Error = String;
-    fn try_from(v: [f64; 3]) -> Result<Self, String> {
+    fn try_from(v: Vec<f64>) -> Result<Self, String> {
+        let v = three(&v, "a point or vector")?;
         for x in v {
             check_coordinate("coordinate", x)?;
         }
@@ -150,12 +156,13 @@ impl Point {
 
 /// Linear RGB radiance: finite, non-negative.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(try_from = "[f64; 3]", into = "[f64; 3]")]
+#[serde(try_from = "Vec<f64>", into = "[f64; 3]")]
 pub struct Color(pub [f64; 3]);
 
-impl TryFrom<[f64; 3]> for Color {
+impl TryFrom<Vec<f64>> for Color {
     type Error = String;
-    fn try_from(v: [f64; 3]) -> Result<Self, String> {
+    fn try_from(v: Vec<f64>) -> Result<Self, String> {
+        let v = three(&v, "a colour")?;
         if v.iter().any(|x| !x.is_finite() || *x < 0.0 || *x > MAX_COORDINATE as f64) {
             return Err(format!("colour {v:?} must be finite and non-negative"));
         }
@@ -171,12 +178,13 @@ impl From<Color> for [f64; 3] {
 
 /// Reflectance: each channel within 0..=1 (more would create energy).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(try_from = "[f64; 3]", into = "[f64; 3]")]
+#[serde(try_from = "Vec<f64>", into = "[f64; 3]")]
 pub struct Albedo(pub [f64; 3]);
 
-impl TryFrom<[f64; 3]> for Albedo {
+impl TryFrom<Vec<f64>> for Albedo {
     type Error = String;
-    fn try_from(v: [f64; 3]) -> Result<Self, String> {
+    fn try_from(v: Vec<f64>) -> Result<Self, String> {
+        let v = three(&v, "an albedo")?;
         if v.iter().any(|x| !(0.0..=1.0).contains(x)) {
             return Err(format!("albedo {v:?} must be within 0..=1 in each channel"));
         }
@@ -385,7 +393,7 @@ pub struct Resolved {
 /// Reads a scene file and every mesh it names.
 pub fn load(path: &Path, files: &dyn Files) -> Result<Resolved> {
     let bytes = files.read(path).map_err(|e| anyhow!("{}: cannot read: {e}", path.display()))?;
-    let text = std::str::from_utf8(&bytes)
+    let text = std::str::from_utf8(crate::files::without_bom(&bytes))
         .map_err(|e| anyhow!("{}: not UTF-8 text (byte {})", path.display(), e.valid_up_to()))?;
     let file = parse(path, text)?;
     resolve(path, text, &file, files)
@@ -582,7 +590,7 @@ pub fn with_settings(mut file: SceneFile, s: &SceneSettings) -> Result<SceneFile
     };
     file.environment = s
         .environment
-        .map(|v| Color::try_from([tidy(v[0]), tidy(v[1]), tidy(v[2])]))
+        .map(|v| Color::try_from(vec![tidy(v[0]), tidy(v[1]), tidy(v[2])]))
         .transpose()
         .map_err(|e| anyhow!(e))?;
     Ok(file)

@@ -1,11 +1,10 @@
 //! Scene input: OBJ + MTL (`obj`), TOML scene files (`file`), mesh placement (`transform`), the
-//! local frame (`local_frame`), procedural test scenes (`procedural`) and file access (`files`).
+//! local frame (`local_frame`), procedural test scenes (`procedural`).
 //!
 //! This module holds the in-memory scene: triangles in the scene's local frame (f32, as both
 //! devices read them), their materials and the light table; and the world-space scene it is made
 //! from, kept in f64 until it is placed (`WorldScene`).
 pub mod file;
-pub mod files;
 pub mod local_frame;
 pub mod obj;
 pub mod procedural;

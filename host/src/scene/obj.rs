@@ -9,7 +9,7 @@
 //!
 //! Format reference: Wavefront's "Object Files (.obj)" and "MTL material format" appendices
 //! (<https://paulbourke.net/dataformats/obj/>, <https://paulbourke.net/dataformats/mtl/>).
-use crate::scene::files::{Disk, Files};
+use crate::files::{Disk, Files};
 use crate::scene::WorldTriangle;
 use crate::scene::{diffuse, Scene};
 use anyhow::{anyhow, bail, Context, Result};
@@ -113,16 +113,54 @@ fn scan_lines(path: &Path, text: &str) -> Result<Scan> {
 
 /// Checks that every colour statement (`Ka`, `Kd`, `Ks`, `Ke`) has three numbers: tobj 4
 /// panics on fewer (found by the `obj_mtl` fuzz target), and a line number helps anyway.
+/// Also: exactly three (a fourth is an error, not dropped), and `Kd` within 0..=1 in each channel,
+/// the rule a scene file's albedo follows (more would reflect more light than arrives).
 fn check_mtl_lines(path: &Path, text: &str) -> Result<()> {
+    let mut material = "";
     for (number, line) in text.lines().enumerate() {
+        let line = line.split('#').next().unwrap_or("");
         let mut words = line.split_whitespace();
-        let Some(key @ ("Ka" | "Kd" | "Ks" | "Ke")) = words.next() else { continue };
-        let values: Vec<&str> = words.take(3).collect();
-        if values.len() < 3 || values.iter().any(|v| v.parse::<f32>().is_err()) {
-            bail!("{}:{}: {key} needs three numbers: {line:?}", path.display(), number + 1);
+        let key = words.next();
+        if key == Some("newmtl") {
+            material = words.next().unwrap_or("");
+            continue;
+        }
+        let Some(key @ ("Ka" | "Kd" | "Ks" | "Ke")) = key else { continue };
+        let values: Vec<&str> = words.collect();
+        let numbers: Vec<f32> = values.iter().filter_map(|v| v.parse().ok()).collect();
+        if values.len() != 3 || numbers.len() != 3 {
+            bail!("{}:{}: {key} needs three numbers, no more: {line:?}", path.display(), number + 1);
+        }
+        if numbers.iter().any(|x| !x.is_finite() || *x < 0.0) || (key == "Kd" && numbers.iter().any(|x| *x > 1.0)) {
+            let range = if key == "Kd" { "within 0..=1 in each channel" } else { "finite and non-negative" };
+            bail!("{}:{}: material {material:?}: {key} {numbers:?} must be {range}", path.display(), number + 1);
         }
     }
     Ok(())
+}
+
+/// A warning for each material that `usemtl` names but no library defines (its faces render
+/// grey diffuse), with the first line that names it.
+fn undefined_materials(path: &Path, text: &str, defined: &[String]) -> Vec<String> {
+    let mut named: Vec<&str> = Vec::new();
+    let mut out = Vec::new();
+    for (number, line) in text.lines().enumerate() {
+        let mut words = line.split_whitespace();
+        if words.next() != Some("usemtl") {
+            continue;
+        }
+        let name = words.next().unwrap_or("");
+        if !name.is_empty() && !defined.iter().any(|d| d == name) && !named.contains(&name) {
+            named.push(name);
+            out.push(format!(
+                "{}:{}: usemtl {name:?}: no material library defines it (names are case-sensitive); its faces \
+                 are grey diffuse",
+                path.display(),
+                number + 1
+            ));
+        }
+    }
+    out
 }
 
 /// The text with every `p` and `l` statement replaced by an empty line (line numbers kept).
@@ -162,7 +200,7 @@ fn texture_file(value: &str) -> Option<&str> {
 pub fn parse_mesh(path: &Path, bytes: &[u8], files: &dyn Files) -> Result<Mesh> {
     // tobj reads lines as UTF-8 and fails the whole file on one bad byte; OBJ is ASCII, so
     // replacement characters only ever land in names and comments.
-    let text = String::from_utf8_lossy(bytes);
+    let text = String::from_utf8_lossy(crate::files::without_bom(bytes));
     let scan = scan_lines(path, &text)?;
     let text = if scan.has_point_or_line_statements { without_points_and_lines(&text).into() } else { text };
     let dir = path.parent().unwrap_or(Path::new(""));
@@ -185,7 +223,7 @@ pub fn parse_mesh(path: &Path, bytes: &[u8], files: &dyn Files) -> Result<Mesh> 
                 return Err(tobj::LoadError::OpenFileFailed);
             }
         };
-        let text = String::from_utf8_lossy(&bytes);
+        let text = String::from_utf8_lossy(crate::files::without_bom(&bytes));
         if let Err(e) = check_mtl_lines(&full, &text) {
             problems.borrow_mut().push(e);
             return Err(tobj::LoadError::MaterialParseError);
@@ -203,7 +241,8 @@ pub fn parse_mesh(path: &Path, bytes: &[u8], files: &dyn Files) -> Result<Mesh> 
     if let Some(e) = problems.into_inner().into_iter().next() {
         return Err(e.context(format!("{}: loading its material libraries", path.display())));
     }
-    for m in missing.into_inner() {
+    let missing = missing.into_inner();
+    for m in &missing {
         warnings.push(format!(
             "{}: material library not found ({}); its materials are grey diffuse",
             path.display(),
@@ -252,6 +291,9 @@ pub fn parse_mesh(path: &Path, bytes: &[u8], files: &dyn Files) -> Result<Mesh> 
             "{}: {textures} texture maps ignored (textures are not supported yet; Kd is used)",
             path.display()
         ));
+    }
+    if missing.is_empty() {
+        warnings.extend(undefined_materials(path, &text, &names));
     }
     let default_material = mats.len() as u32;
     mats.push(diffuse(Vec3::splat(DEFAULT_ALBEDO), Vec3::ZERO));

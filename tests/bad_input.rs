@@ -427,6 +427,46 @@ fn cases() -> Vec<Case> {
             ],
             &["--spp 1", "at least 2"],
         ),
+        // ---- errors that name their line ----
+        case(
+            "a face corner that is not an index",
+            vec![("a.obj", &format!("{TRI}f 1 2 3.0\n"))],
+            render("a.obj"),
+            &["a.obj:4", "3.0"],
+        ),
+        case(
+            "a texture index that is not one",
+            vec![("a.obj", &format!("{TRI}f 1/x 2 3\n"))],
+            render("a.obj"),
+            &["a.obj:4", "1/x"],
+        ),
+        case(
+            "a vertex of five numbers",
+            vec![("a.obj", "v 0 0 0 1 2\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")],
+            render("a.obj"),
+            &["a.obj:1", "not 5"],
+        ),
+        toml_case(
+            "a camera whose eye is its target",
+            "[camera]\neye = [0, 0, 1]\ntarget = [0, 0, 1]\n[[mesh]]\nfile = \"m.obj\"\n",
+            &["s.toml", "eye and target must differ"],
+        ),
+        // ---- scales beyond what renders correctly ----
+        toml_case(
+            "a scene scaled beyond the largest extent",
+            "[[mesh]]\nfile = \"m.obj\"\nscale = 1e13\n",
+            &["s.toml", "renders scenes up to"],
+        ),
+        toml_case(
+            "a scene scaled below the smallest extent",
+            "[[mesh]]\nfile = \"m.obj\"\nscale = 1e-12\n",
+            &["s.toml", "of at least"],
+        ),
+        toml_case(
+            "a camera beyond the largest extent",
+            "[camera]\neye = [0, 0, 1e13]\n[[mesh]]\nfile = \"m.obj\"\n",
+            &["s.toml", "camera", "5e12"],
+        ),
         case(
             "ray timing with no runs",
             vec![],

@@ -1,8 +1,8 @@
 //! Inputs that are not regular files are refused at once with bounded memory (a FIFO named as a
 //! material library would block forever, `/dev/zero` would be read until memory ran out); a write
 //! that fails part-way leaves the previous output byte for byte and no temporary file; a UTF-8
-//! byte-order mark does not swallow the first line; a `usemtl` of an undefined material is named
-//! in a warning.
+//! byte-order mark does not swallow the first line, nor do lone-CR line ends make one line of a
+//! file; a `usemtl` of an undefined material is named in a warning.
 #[path = "common/paths.rs"]
 mod paths;
 use paths::repo;
@@ -122,6 +122,10 @@ fn a_byte_order_mark_does_not_swallow_the_first_line() {
     assert_eq!(a["triangles"], 2);
     assert_eq!(a["triangles"], b["triangles"]);
     assert_eq!(a["sah_cost"], b["sah_cost"]);
+    // Classic Mac line ends (a CR alone) are line breaks too.
+    let cr = d.join("cr.obj");
+    std::fs::write(&cr, std::fs::read_to_string(&plain).unwrap().replace('\n', "\r")).unwrap();
+    assert_eq!(tree_json(&cr)["triangles"], 2);
     // And a scene file with a mark.
     let toml = d.join("s.toml");
     std::fs::write(&toml, "\u{feff}[render]\nspp = 1\n[[mesh]]\nfile = \"plain.obj\"\n").unwrap();

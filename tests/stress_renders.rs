@@ -1,5 +1,6 @@
-//! Whole renders under numerical stress: the Cornell box scaled by 1e-4 and 1e4 and moved 1e5
-//! away (loaded into its local frame) renders like the plain one within noise on both devices
+//! Whole renders under numerical stress: the Cornell box scaled by every power of 10^4 from 1e-8
+//! to 1e12 (the range `shared::numerics::MIN_EXTENT`..`MAX_EXTENT` admits) and moved 1e5 away
+//! (loaded into its local frame) renders like the plain one within noise on both devices
 //! with no non-finite sample, block by block under a z-test with Šidák's correction, and
 //! coincident duplicate faces (CornellBox-Original stores each box's front twice) render like the
 //! deduplicated scene. Garbage rays are misses on every traversal.
@@ -99,7 +100,9 @@ fn finite(r: &Rendered) -> bool {
     r.zeroed_samples() == 0 && r.mean().iter().all(|p| p.iter().all(|c| c.is_finite() && *c >= 0.0))
 }
 
-/// The box scaled by 1e-4 and 1e4 must render like the plain one. Moved 1e5 away, f32 itself
+/// The box scaled by 1e-8 to 1e12 must render like the plain one (before normals and areas were
+/// computed at a power-of-two scale, 1e10 rendered at 60% of its brightness and 1e12 at 43%: the
+/// cross product's squared length overflowed). Moved 1e5 away, f32 itself
 /// rounds every vertex and the camera to 1/128: that changes the scene, not the renderer's
 /// handling of it. So the moved box is compared with its own rounded geometry and camera moved
 /// back to the origin (an exact subtraction). Loaded the way `kdtrace::load` loads scenes, it is
@@ -114,7 +117,7 @@ fn scaled_and_moved_cornell_boxes_render_like_the_plain_one() {
     let g = gpu::Gpu::open(None).expect("a Vulkan adapter (lavapipe in CI)");
     let plain = placed(&base, 1.0, 0.0);
     let plain_ref = cpu::render(&plain, &settings(1.0, 0.0, 1), &no_progress).unwrap();
-    for (scale, shift) in [(1e-4f32, 0.0f32), (1e4, 0.0), (1.0, 1e5)] {
+    for (scale, shift) in [(1e-8f32, 0.0f32), (1e-4, 0.0), (1e4, 0.0), (1e8, 0.0), (1e12, 0.0), (1.0, 1e5)] {
         let world = placed(&base, scale, shift);
         let s = settings(scale, shift, 3);
         let reference = if shift == 0.0 {

@@ -15,6 +15,17 @@ pub const fn gamma(n: u32) -> f32 {
     ne / (1.0 - ne)
 }
 
+/// The largest coordinate, in scene units, of the scene's box and the camera in the scene's local
+/// frame: the watertight triangle test (Woop et al. 2013, `triangle`) multiplies three
+/// coordinate differences, which must stay below f32's largest value (3.4e38). The Cornell box
+/// renders correctly with coordinates up to 7e12 and wrongly from 3e13 on; scenes and cameras
+/// beyond this are refused, not rendered wrong.
+pub const MAX_EXTENT: f32 = 5e12;
+/// The smallest largest side a scene's box may have: the same products must stay above f32's
+/// smallest normal value (1.2e-38), with room for the triangles' own, smaller, edges (the box
+/// renders correctly at 2e-11 units and black at 2e-16).
+pub const MIN_EXTENT: f32 = 1e-10;
+
 /// Relative slack applied to t-intervals during k-d traversal. Split-plane distances carry about
 /// γ(3) of error and watertight hit distances a few ulps of the triangle's extent along the ray;
 /// widening by 2^-16 visits a node more only when a hit lies within that margin of its boundary.
@@ -76,6 +87,15 @@ fn step_away(x: f32, direction: f32) -> f32 {
     } else {
         x
     }
+}
+
+/// The power of two 2^-e, where 2^e ≤ x < 2^(e+1): multiplying by it is exact and brings a
+/// positive normal `x` into [1, 2). For 0 (and subnormal `x`) it is 2^127, for `x` at or above
+/// 2^127 it is 0: callers pass magnitudes far inside that range.
+#[inline]
+pub fn inverse_power_of_two(x: f32) -> f32 {
+    let e = (x.to_bits() >> 23) & 0xff;
+    f32::from_bits(254u32.saturating_sub(e) << 23)
 }
 
 /// Zeroes a non-finite or negative radiance sample. Returns the sample and whether it was bad.

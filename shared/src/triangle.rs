@@ -191,11 +191,33 @@ pub fn geometric_normal(tri: &Triangle) -> Vec3 {
     crate::vecmath::cross(xyz(tri.v1) - xyz(tri.v0), xyz(tri.v2) - xyz(tri.v0))
 }
 
-/// The unit geometric normal, normalize((v1 − v0) × (v2 − v0)): what `Triangle::with_unit_normal`
-/// stores in the `w` components.
+/// The geometric normal of the triangle's edges scaled by the power of two `s` that brings the
+/// longest edge component into [1, 2), and `1 / s`. Scaling by a power of two is exact, so the
+/// result is `s²` times `geometric_normal` bit for bit wherever that is representable, but its
+/// length, squared, neither overflows (edges beyond 1e10 square to beyond f32's range twice) nor
+/// underflows (edges below 1e-10); `numerics::inverse_power_of_two` has the scale.
+#[inline]
+fn scaled_normal(tri: &Triangle) -> (Vec3, f32) {
+    let (e1, e2) = (xyz(tri.v1) - xyz(tri.v0), xyz(tri.v2) - xyz(tri.v0));
+    let m = e1.abs().max(e2.abs());
+    let s = crate::numerics::inverse_power_of_two(m.x.max(m.y).max(m.z));
+    (crate::vecmath::cross(e1 * s, e2 * s), 1.0 / s)
+}
+
+/// The unit geometric normal, normalize((v1 − v0) × (v2 − v0)), computed without overflow or
+/// underflow at any scale (`scaled_normal`; the same bits as the plain formula wherever that one
+/// does not overflow): what `Triangle::with_unit_normal` stores in the `w` components.
 #[inline]
 pub fn unit_normal(tri: &Triangle) -> Vec3 {
-    crate::vecmath::normalize(geometric_normal(tri))
+    crate::vecmath::normalize(scaled_normal(tri).0)
+}
+
+/// The triangle's area, |(v1 − v0) × (v2 − v0)| / 2, at any scale (`scaled_normal`); zero only
+/// for a triangle whose edges are parallel (or of zero length).
+#[inline]
+pub fn area(tri: &Triangle) -> f32 {
+    let (n, inv_s) = scaled_normal(tri);
+    0.5 * (crate::vecmath::length(n) * (inv_s * inv_s))
 }
 
 /// The unit normal stored in the `w` components (`unit_normal`'s value, bit for bit).

@@ -13,7 +13,7 @@ mod verify;
 use crate::render::{Compiled, Rendered};
 use crate::settings::RenderSettings;
 use crate::{kdbuild, Loaded};
-use anyhow::Result;
+use anyhow::{Context, Result};
 use args::{Device, ImageArgs};
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -82,10 +82,14 @@ fn print_json(report: &impl serde::Serialize) -> Result<()> {
     Ok(())
 }
 
-/// Flags over the scene's own settings over the defaults, and how to render.
-fn settings(a: &ImageArgs, loaded: &Loaded) -> Result<RenderSettings> {
+/// Flags over the scene's own settings over the defaults, and how to render; an error names the
+/// scene.
+fn settings(a: &ImageArgs, loaded: &Loaded, scene: &Path) -> Result<RenderSettings> {
     let (lo, hi) = loaded.compiled.world_bounds();
-    let mut s = loaded.settings.overridden_by(&a.scene).resolve(lo, hi)?;
+    let context = || format!("{} with the command line's settings", scene.display());
+    let mut s = loaded.settings.overridden_by(&a.scene).resolve(lo, hi).with_context(context)?;
+    // The camera placed against the scene (its distance in the local frame), before any work.
+    loaded.compiled.params(&s, 0, 1).with_context(context)?;
     s.traversal = a.traversal;
     s.dispatch = a.dispatch;
     s.aov = a.aov;

@@ -46,7 +46,7 @@ pub fn run(r: RaysArgs) -> Result<ExitCode> {
     let build = r.device.build_settings();
     let loaded = load(&r.scene, build)?;
     let c = &loaded.compiled;
-    let s = settings(&r.image, &loaded)?;
+    let s = settings(&r.image, &loaded, &r.scene)?;
     let g = match r.device {
         Device::Gpu => Some(Gpu::open(r.image.adapter.as_deref())?),
         Device::Cpu => None,

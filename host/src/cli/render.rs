@@ -78,7 +78,7 @@ pub fn run(r: RenderArgs) -> Result<ExitCode> {
     files::check_outputs(&outputs, &[&r.scene])?;
     let loaded = load(&r.scene, r.device.build_settings())?;
     let c = &loaded.compiled;
-    let s = settings(&r.image, &loaded)?;
+    let s = settings(&r.image, &loaded, &r.scene)?;
     let run = run_device(r.device, c, &s, &r.image)?;
     let img = &run.image;
     let pixels = img.mean();

@@ -7,6 +7,7 @@ use crate::render::Compiled;
 use crate::scene::{file, obj, Scene, WorldScene};
 use crate::settings::SceneSettings;
 use anyhow::{bail, Result};
+use shared::numerics::{MAX_EXTENT, MIN_EXTENT};
 use std::path::Path;
 use std::time::Instant;
 
@@ -94,6 +95,7 @@ pub fn load(path: &Path, settings: BuildSettings) -> Result<Loaded> {
             scene.dropped_degenerate
         );
     }
+    check_extent(&scene, path)?;
     if scene.dropped_degenerate > 0 {
         warnings.push(format!("{}: {} zero-area triangles dropped", path.display(), scene.dropped_degenerate));
     }
@@ -106,6 +108,29 @@ pub fn load(path: &Path, settings: BuildSettings) -> Result<Loaded> {
     compiled.origin = origin;
     let prepare_s = t2.elapsed().as_secs_f64();
     Ok(Loaded { compiled, settings: scene_settings, warnings, kind, load_s, build_s, prepare_s })
+}
+
+/// The scene's box in its local frame against the range the renderer computes correctly
+/// (`shared::numerics::MAX_EXTENT`, `MIN_EXTENT`).
+fn check_extent(scene: &Scene, path: &Path) -> Result<()> {
+    let (lo, hi) = (scene.bounds_min, scene.bounds_max);
+    let reach = lo.abs().max(hi.abs()).max_element();
+    let side = (hi - lo).max_element();
+    if reach > MAX_EXTENT {
+        bail!(
+            "{}: the scene reaches {reach:e} units from its local origin; kdtrace renders scenes up to \
+             {MAX_EXTENT:e} units (scale it down)",
+            path.display()
+        );
+    }
+    if side < MIN_EXTENT {
+        bail!(
+            "{}: the scene is {side:e} units across; kdtrace renders scenes of at least {MIN_EXTENT:e} units \
+             (scale it up)",
+            path.display()
+        );
+    }
+    Ok(())
 }
 
 /// Builds a scene's k-d tree, in the scene's own coordinates (`load` first moves a scene far from

@@ -13,13 +13,14 @@ use crate::kdbuild::KdTree;
 use crate::scene::local_frame::{point_to_local, point_to_world};
 use crate::scene::Scene;
 use crate::settings::{Aov, RenderSettings, Traversal};
-use anyhow::Result;
+use anyhow::{bail, Result};
 use rayon::prelude::*;
 use shared::glam::{DVec3, Vec4};
 use shared::layout::{
     Light, RenderParams, TriBlock, Triangle, AOV_COST, AOV_RADIANCE, BLOCK_WIDTH, TRAVERSAL_FULL_STACK,
     TRAVERSAL_SHORT_STACK,
 };
+use shared::numerics::MAX_EXTENT;
 use shared::scene::SceneView;
 
 /// A scene ready to render: geometry, materials, lights and its k-d tree.
@@ -58,8 +59,15 @@ impl Compiled {
 
     pub fn params(&self, s: &RenderSettings, sample_start: u32, sample_count: u32) -> Result<RenderParams> {
         let (right, up, forward) = s.camera.basis(s.aspect())?;
+        let eye = point_to_local(s.camera.eye, self.origin);
+        if !(eye.abs().max_element() <= MAX_EXTENT) {
+            bail!(
+                "camera: the eye lies {:e} units from the scene's local origin; kdtrace renders up to {MAX_EXTENT:e}",
+                eye.abs().max_element()
+            );
+        }
         Ok(RenderParams {
-            eye: point_to_local(s.camera.eye, self.origin).extend(0.0),
+            eye: eye.extend(0.0),
             right: right.extend(0.0),
             up: up.extend(0.0),
             forward: forward.extend(0.0),

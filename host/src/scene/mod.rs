@@ -14,8 +14,8 @@ use anyhow::{bail, Result};
 use shared::glam::{DVec3, Vec3, Vec4};
 use shared::layout::{Light, Material, Triangle, TriangleInfo, MATERIAL_DIFFUSE, NO_LIGHT};
 use shared::material::is_emissive;
-use shared::triangle::geometric_normal;
-use shared::vecmath::{length, luminance, xyz};
+use shared::triangle::area;
+use shared::vecmath::{luminance, xyz};
 
 #[derive(Clone, Debug)]
 pub struct Scene {
@@ -97,7 +97,7 @@ impl Scene {
                     bail!("non-finite vertex {v:?}");
                 }
             }
-            if length(geometric_normal(t)) == 0.0 {
+            if area(t) == 0.0 {
                 dropped += 1;
                 continue;
             }
@@ -109,7 +109,7 @@ impl Scene {
         for (i, t) in kept.iter().enumerate() {
             let m = &materials[info[i].material as usize];
             if is_emissive(m) {
-                let area = 0.5 * length(geometric_normal(t));
+                let area = area(t);
                 let power = area as f64 * luminance(xyz(m.emission)).max(1e-6) as f64;
                 info[i].light = lights.len() as u32;
                 lights.push(Light { triangle: i as u32, pmf: power as f32, cdf: 0.0, area });

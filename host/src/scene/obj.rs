@@ -15,6 +15,7 @@ use crate::scene::{diffuse, Scene};
 use anyhow::{anyhow, bail, Context, Result};
 use shared::glam::{DVec3, Vec3};
 use shared::layout::Material;
+use std::borrow::Cow;
 use std::cell::RefCell;
 use std::io::{Cursor, ErrorKind};
 use std::path::{Path, PathBuf};
@@ -72,8 +73,23 @@ fn scan_lines(path: &Path, text: &str) -> Result<Scan> {
                     scan.skipped_elements += 1;
                 }
                 for corner in corners {
-                    let v = corner.split('/').next().unwrap_or("");
-                    let Ok(i) = v.parse::<i64>() else { continue };
+                    // Every part present must be an index (tobj reports a bad one without a line).
+                    let parts: Vec<&str> = corner.split('/').collect();
+                    let v = parts[0];
+                    if parts.len() > 3 || parts[1..].iter().any(|p| !p.is_empty() && p.parse::<i64>().is_err()) {
+                        bail!(
+                            "{}:{}: face corner {corner:?} is not v, v/vt, v//vn or v/vt/vn",
+                            path.display(),
+                            number + 1
+                        );
+                    }
+                    let i = v.parse::<i64>().map_err(|_| {
+                        anyhow!(
+                            "{}:{}: face corner {corner:?}: {v:?} is not a vertex index",
+                            path.display(),
+                            number + 1
+                        )
+                    })?;
                     if i == 0 || i > vertices || i < -vertices {
                         bail!(
                             "{}:{}: face vertex index {i} out of range ({vertices} vertices defined above)",
@@ -96,12 +112,20 @@ fn scan_lines(path: &Path, text: &str) -> Result<Scan> {
             }
             _ => continue,
         }
-        let coords: Vec<&str> = words.take(3).collect();
-        // (`vertices` already counts this line.)
-        if coords.len() < 3 {
-            bail!("{}:{}: vertex needs 3 coordinates: {line:?}", path.display(), number + 1);
+        let values: Vec<&str> = words.collect();
+        // (`vertices` already counts this line.) x y z, x y z w, or x y z r g b (the common
+        // vertex-colour extension); tobj reports any other count without a line.
+        if !matches!(values.len(), 3 | 4 | 6) {
+            bail!(
+                "{}:{}: vertex needs 3 coordinates (4 with w, 6 with a colour), not {}: {line:?}",
+                path.display(),
+                number + 1,
+                values.len()
+            );
         }
+        let coords = &values[..3];
         for c in coords {
+            let c = *c;
             let x: f64 = c.parse().map_err(|_| anyhow!("{}:{}: not a number: {c:?}", path.display(), number + 1))?;
             if !x.is_finite() || x.abs() > MAX_COORDINATE as f64 {
                 bail!("{}:{}: coordinate {c} is not finite or beyond ±{MAX_COORDINATE:e}", path.display(), number + 1);
@@ -163,6 +187,17 @@ fn undefined_materials(path: &Path, text: &str, defined: &[String]) -> Vec<Strin
     out
 }
 
+/// Classic Mac line ends (a CR alone) read as line breaks like every other line end: tobj and
+/// `str::lines` split at LF only and would see the whole file as one line.
+fn with_line_feeds(text: Cow<'_, str>) -> Cow<'_, str> {
+    let b = text.as_bytes();
+    if b.iter().enumerate().any(|(i, &c)| c == b'\r' && b.get(i + 1) != Some(&b'\n')) {
+        Cow::Owned(text.replace("\r\n", "\n").replace('\r', "\n"))
+    } else {
+        text
+    }
+}
+
 /// The text with every `p` and `l` statement replaced by an empty line (line numbers kept).
 fn without_points_and_lines(text: &str) -> String {
     let mut out = String::with_capacity(text.len());
@@ -200,7 +235,7 @@ fn texture_file(value: &str) -> Option<&str> {
 pub fn parse_mesh(path: &Path, bytes: &[u8], files: &dyn Files) -> Result<Mesh> {
     // tobj reads lines as UTF-8 and fails the whole file on one bad byte; OBJ is ASCII, so
     // replacement characters only ever land in names and comments.
-    let text = String::from_utf8_lossy(crate::files::without_bom(bytes));
+    let text = with_line_feeds(String::from_utf8_lossy(crate::files::without_bom(bytes)));
     let scan = scan_lines(path, &text)?;
     let text = if scan.has_point_or_line_statements { without_points_and_lines(&text).into() } else { text };
     let dir = path.parent().unwrap_or(Path::new(""));
@@ -223,7 +258,7 @@ pub fn parse_mesh(path: &Path, bytes: &[u8], files: &dyn Files) -> Result<Mesh> 
                 return Err(tobj::LoadError::OpenFileFailed);
             }
         };
-        let text = String::from_utf8_lossy(crate::files::without_bom(&bytes));
+        let text = with_line_feeds(String::from_utf8_lossy(crate::files::without_bom(&bytes)));
         if let Err(e) = check_mtl_lines(&full, &text) {
             problems.borrow_mut().push(e);
             return Err(tobj::LoadError::MaterialParseError);

@@ -2,7 +2,8 @@
 //! material library would block forever, `/dev/zero` would be read until memory ran out); a write
 //! that fails part-way leaves the previous output byte for byte and no temporary file; a UTF-8
 //! byte-order mark does not swallow the first line, nor do lone-CR line ends make one line of a
-//! file; a `usemtl` of an undefined material is named in a warning.
+//! file; a `usemtl` of an undefined material is named in a warning; an image whose buffers do not
+//! fit in memory is refused, with the size it needs, before they are allocated.
 #[path = "common/paths.rs"]
 mod paths;
 use paths::repo;
@@ -100,6 +101,26 @@ fn a_write_that_fails_leaves_the_previous_file_untouched() {
         .unwrap();
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(&std::fs::read(&out).unwrap()[1..4], b"PNG");
+}
+
+#[test]
+fn an_image_beyond_memory_is_refused_with_the_size_it_needs() {
+    let d = dir("memory");
+    let out = d.join("huge.png");
+    // 16384² needs about 16 GiB of buffers; a 3 GiB address-space limit cannot hold them. Refused
+    // before the buffers exist, not ended by a signal part-way.
+    let script = format!(
+        "ulimit -v 3000000; exec {:?} render {:?} --out {:?} --spp 1 --width 16384 --height 16384",
+        env!("CARGO_BIN_EXE_kdtrace"),
+        repo("scenes/cornell-box.obj"),
+        out
+    );
+    let start = Instant::now();
+    let o = Command::new("bash").arg("-c").arg(&script).output().unwrap();
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(e.contains("16384x16384") && e.contains("GiB"), "{e}");
+    assert!(start.elapsed() < Duration::from_secs(60) && !out.exists());
 }
 
 fn tree_json(scene: &Path) -> serde_json::Value {

@@ -129,6 +129,7 @@ struct DeviceRun {
 }
 
 fn run_device(device: Device, c: &Compiled, s: &RenderSettings, a: &ImageArgs) -> Result<DeviceRun> {
+    crate::render::memory::check(s.width, s.height, device == Device::Gpu)?;
     let bar = progress_bar(a.json, device.name());
     let report = |done: u64, total: u64| {
         bar.set_length(total);

@@ -6,6 +6,7 @@ pub mod cpu;
 pub mod gpu;
 pub mod kdc;
 pub mod load;
+pub mod memory;
 pub mod raybench;
 pub mod verify;
 

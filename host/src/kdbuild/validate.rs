@@ -35,17 +35,23 @@ pub fn check_structure(nodes: &[KdNode], indices: &[u32], triangles: usize) -> R
     let mut stack: Vec<(u32, u32)> = Vec::with_capacity(2 * KD_MAX_DEPTH as usize + 2);
     stack.push((0, 0));
     let (mut visited, mut max_depth) = (0usize, 0u32);
+    // One flag a node: a node reached twice (a shared subtree) is an error at once, so counting
+    // cannot be fooled by one node reached twice and another never.
+    let mut reached = vec![false; n];
     while let Some((i, depth)) = stack.pop() {
         let i = i as usize;
-        visited += 1;
-        if visited > n {
-            return Err(format!("more nodes reached than there are ({n}): subtrees are shared"));
+        if i >= n {
+            return Err(format!("node index {i} out of range ({n} nodes)"));
         }
+        if std::mem::replace(&mut reached[i], true) {
+            return Err(format!("node {i} is reached twice: subtrees are shared"));
+        }
+        visited += 1;
         if depth > KD_MAX_DEPTH {
             return Err(format!("node {i} at depth {depth}, beyond {KD_MAX_DEPTH}"));
         }
         max_depth = max_depth.max(depth);
-        let node = *nodes.get(i).ok_or_else(|| format!("node index {i} out of range ({n} nodes)"))?;
+        let node = nodes[i];
         if node.is_leaf() {
             let (first, count) = (node.first_index() as u64, node.count() as u64);
             if first + count > indices.len() as u64 {
@@ -173,4 +179,28 @@ fn listed_under(tree: &KdTree, node: usize, voxel: &Aabb, tri: &Tri64, id: u32) 
         stack.push((n.above_child() as usize, a));
     }
     false
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Found by the `kdc_reader` fuzz target: node 2 reached from two parents and node 4 from
+    /// none make as many visits as there are nodes, so a count alone passed the tree, and the
+    /// unreachable leaf's index range (far beyond the list) was later sliced.
+    #[test]
+    fn a_shared_node_and_an_unreachable_one_are_refused() {
+        let nodes = [
+            KdNode::interior(0, 0.5, 2),
+            KdNode::interior(1, 0.5, 3),
+            KdNode::leaf(0, 1),
+            KdNode::leaf(0, 1),
+            KdNode::leaf(0x8000_0076, 0),
+        ];
+        let e = check_structure(&nodes, &[0], 1).unwrap_err();
+        assert!(e.contains("reached twice"), "{e}");
+        // The same tree without the shared node is sound.
+        let sound = [KdNode::interior(0, 0.5, 2), KdNode::leaf(0, 1), KdNode::leaf(0, 1)];
+        assert_eq!(check_structure(&sound, &[0], 1), Ok(1));
+    }
 }

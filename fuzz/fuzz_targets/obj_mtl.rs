@@ -2,11 +2,7 @@
 //! library `scene.mtl` it may name (a texture `tex.png` exists beside it). Whatever loads must
 //! also assemble into a scene and get a k-d tree.
 #![no_main]
-use kdtrace::{
-    compile, kdbuild, scene,
-    files::InMemory,
-    scene::obj,
-};
+use kdtrace::{compile, files::InMemory, kdbuild, scene::obj};
 use libfuzzer_sys::fuzz_target;
 use std::path::Path;
 
@@ -17,13 +13,7 @@ fuzz_target!(|data: &[u8]| {
     };
     let files = InMemory::default().with("fuzz/scene.mtl", mtl_bytes).with("fuzz/tex.png", b"png".to_vec());
     if let Ok(mesh) = obj::parse_mesh(Path::new("fuzz/scene.obj"), obj_bytes, &files) {
-        let world = scene::WorldScene {
-            triangles: mesh.triangles,
-            material_of: mesh.material_of,
-            materials: mesh.materials,
-            material_names: mesh.material_names,
-        };
-        if let Ok((s, _origin)) = world.into_local() {
+        if let Ok((s, _origin)) = mesh.scene.into_local() {
             let c = compile(s, kdbuild::BuildSettings::default());
             assert!(!c.tree.nodes.is_empty());
         }

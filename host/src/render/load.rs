@@ -4,7 +4,7 @@ use super::kdc;
 use crate::files;
 use crate::kdbuild::{self, BuildSettings};
 use crate::render::Compiled;
-use crate::scene::{file, obj, Scene, WorldScene};
+use crate::scene::{file, obj, Scene};
 use crate::settings::SceneSettings;
 use anyhow::{bail, Result};
 use shared::numerics::{MAX_EXTENT, MIN_EXTENT};
@@ -72,13 +72,7 @@ pub fn load(path: &Path, settings: BuildSettings) -> Result<Loaded> {
         }
         SceneKind::Obj => {
             let mesh = obj::load_mesh(path, &files::Disk)?;
-            let scene = WorldScene {
-                triangles: mesh.triangles,
-                material_of: mesh.material_of,
-                materials: mesh.materials,
-                material_names: mesh.material_names,
-            };
-            (scene, SceneSettings::default(), mesh.warnings)
+            (mesh.scene, SceneSettings::default(), mesh.warnings)
         }
         SceneKind::Toml => {
             let r = file::load(path, &files::Disk)?;

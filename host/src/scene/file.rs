@@ -474,30 +474,30 @@ pub fn resolve(path: &Path, text: &str, file: &SceneFile, files: &dyn Files) -> 
         let whole = m.material.as_ref().map(&lookup).transpose()?;
         let mut by_name = BTreeMap::new();
         for (mtl_name, target) in &m.materials {
-            if !mesh.material_names.iter().any(|n| n == mtl_name) {
+            if !mesh.scene.material_names.iter().any(|n| n == mtl_name) {
                 bail!(
                     "{}: mesh {:?} has no MTL material named {mtl_name:?} (it has: {})",
                     at(target.span()),
                     m.file.get_ref(),
-                    mesh.material_names.join(", ")
+                    mesh.scene.material_names.join(", ")
                 );
             }
             by_name.insert(mtl_name.as_str(), lookup(target)?);
         }
         // The global index of each of this mesh's local materials.
-        let mut global = Vec::with_capacity(mesh.materials.len());
-        for (local, name) in mesh.material_names.iter().enumerate() {
+        let mut global = Vec::with_capacity(mesh.scene.materials.len());
+        for (local, name) in mesh.scene.material_names.iter().enumerate() {
             let g = match by_name.get(name.as_str()).copied().or(whole) {
                 Some(g) => g,
                 None => {
-                    materials.push(mesh.materials[local]);
+                    materials.push(mesh.scene.materials[local]);
                     names.push(name.clone());
                     materials.len() as u32 - 1
                 }
             };
             global.push(g);
         }
-        let mut placed = mesh.triangles;
+        let mut placed = mesh.scene.triangles;
         placement(m).apply(&mut placed);
         for v in placed.iter().flatten() {
             if !v.is_finite() || v.abs().max_element() > MAX_COORDINATE as f64 {
@@ -509,7 +509,7 @@ pub fn resolve(path: &Path, text: &str, file: &SceneFile, files: &dyn Files) -> 
             }
         }
         triangles.extend(placed);
-        material_of.extend(mesh.material_of.iter().map(|&l| global[l as usize]));
+        material_of.extend(mesh.scene.material_of.iter().map(|&l| global[l as usize]));
         warnings.extend(mesh.warnings);
     }
     let scene = WorldScene { triangles, material_of, materials, material_names: names };

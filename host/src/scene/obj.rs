@@ -10,11 +10,9 @@
 //! Format reference: Wavefront's "Object Files (.obj)" and "MTL material format" appendices
 //! (<https://paulbourke.net/dataformats/obj/>, <https://paulbourke.net/dataformats/mtl/>).
 use crate::files::{Disk, Files};
-use crate::scene::WorldTriangle;
-use crate::scene::{diffuse, Scene};
+use crate::scene::{diffuse, Scene, WorldScene};
 use anyhow::{anyhow, bail, Context, Result};
 use shared::glam::{DVec3, Vec3};
-use shared::layout::Material;
 use std::borrow::Cow;
 use std::cell::RefCell;
 use std::io::{Cursor, ErrorKind};
@@ -25,26 +23,14 @@ pub const DEFAULT_ALBEDO: f32 = 0.5;
 /// Coordinates beyond this are rejected: squared distances would overflow f32.
 pub const MAX_COORDINATE: f32 = 1e18;
 
-/// One OBJ file's triangles with a material each, before they become (part of) a scene.
+/// One OBJ file: its triangles with a material each in world coordinates as written (f64), the
+/// MTL materials in library order and then the grey default (always last); before they become
+/// (part of) a scene.
 #[derive(Clone, Debug)]
 pub struct Mesh {
-    /// World coordinates as written (f64): rounded to f32 only once the scene is in its local
-    /// frame (`local_frame::place`).
-    pub triangles: Vec<WorldTriangle>,
-    /// Per triangle, an index into `materials`.
-    pub material_of: Vec<u32>,
-    /// The MTL materials in library order, then the grey default (always last).
-    pub materials: Vec<Material>,
-    pub material_names: Vec<String>,
+    pub scene: WorldScene,
     /// Things the user should know that do not stop the load (missing MTL, skipped elements).
     pub warnings: Vec<String>,
-}
-
-impl Mesh {
-    /// Index of the grey default material (for faces without `usemtl`).
-    pub fn default_material(&self) -> u32 {
-        self.materials.len() as u32 - 1
-    }
 }
 
 /// What the line scan learns besides rejecting bad vertices.
@@ -214,9 +200,9 @@ fn without_points_and_lines(text: &str) -> String {
 /// for tests and tools that want the file's own coordinates).
 pub fn load_obj(path: &Path) -> Result<Scene> {
     let mesh = load_mesh(path, &Disk)?;
-    let triangles = mesh.triangles.iter().map(crate::scene::round_triangle).collect();
-    Scene::new(triangles, mesh.material_of, mesh.materials, mesh.material_names)
-        .with_context(|| format!("{}", path.display()))
+    let m = mesh.scene;
+    let triangles = m.triangles.iter().map(crate::scene::round_triangle).collect();
+    Scene::new(triangles, m.material_of, m.materials, m.material_names).with_context(|| format!("{}", path.display()))
 }
 
 /// Reads and parses an OBJ file and the MTL libraries it names.
@@ -370,5 +356,5 @@ pub fn parse_mesh(path: &Path, bytes: &[u8], files: &dyn Files) -> Result<Mesh> 
             scan.skipped_elements
         ));
     }
-    Ok(Mesh { triangles, material_of, materials: mats, material_names: names, warnings })
+    Ok(Mesh { scene: WorldScene { triangles, material_of, materials: mats, material_names: names }, warnings })
 }

@@ -11,7 +11,7 @@
 //!   priced first by an estimate that multiplies where the cost divides; only those the
 //!   estimate cannot rule out get the exact cost, which alone decides (`Sah::estimate`). The
 //!   sweep takes sixteen events at a time, and a group whose least possible estimate lies
-//!   above the best so far is passed over whole (on the bunny, two runs in three are never
+//!   above the best so far is passed over whole (on scanned meshes most runs are never
 //!   priced).
 //! - An event is one integer (position bits, kind, reference; `Event`) whose order is the sweep
 //!   order, so sorting, merging and classifying events compare integers.
@@ -27,9 +27,9 @@
 //! - The two children of a large node are built in parallel (rayon); each subtree is laid out
 //!   on its own and written into the final arrays once at the end, so the tree does not depend
 //!   on the number of threads.
-//! - The work is passes over events: on the bunny's tree (eight-triangle leaves, about 37
-//!   references a leaf) the sweeps read 8.8 M events and the partitions 5.5 M, about a fifth of
-//!   the sweeps ending in a split that cuts off empty space. So the per-event work is kept
+//! - The work is passes over events (the sweeps read more than the partitions write, and many
+//!   sweeps end in a split that cuts off empty space; BENCHMARKS.md, "k-d build", has the
+//!   counts). So the per-event work is kept
 //!   branch-free and the bookkeeping off that path: lists come from pools that the build's
 //!   tasks pass on to each other (`Stash`), so memory freed anywhere serves later nodes, a
 //!   split with one empty side hands its lists to the other child unchanged, and a child that

@@ -61,6 +61,10 @@ fn renders_the_default_scene_on_both_devices_with_json() {
         }
         assert_eq!(line["device"], device);
         assert_eq!(line["triangles"], 32);
+        // The Cornell box: its lamp (two triangles), diffuse walls, light after bounces.
+        let f = &line["features"];
+        assert_eq!((f["emitters"].as_u64(), f["environment"].as_str()), (Some(2), Some("black")), "{f}");
+        assert_eq!((f["indirect"].as_bool(), f["variant"].as_str()), (Some(true), Some("generic")), "{f}");
         assert_eq!(
             (line["width"].as_u64(), line["height"].as_u64(), line["spp"].as_u64()),
             (Some(40), Some(30), Some(4))

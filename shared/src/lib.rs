@@ -16,6 +16,7 @@
 pub use spirv_std::glam;
 
 pub mod camera;
+pub mod features;
 pub mod integrator;
 pub mod kdtree;
 pub mod layout;

@@ -3,6 +3,7 @@ use super::args::{Device, ImageArgs};
 use super::{load, print_json, run_device, settings};
 use crate::files;
 use crate::image::io;
+use crate::render::features::{self, Features};
 use crate::settings::{Aov, Dispatch, SamplerKind, Traversal};
 use anyhow::{bail, Result};
 use clap::Args;
@@ -56,6 +57,8 @@ struct RenderReport<'a> {
     traversal: Traversal,
     dispatch: Dispatch,
     aov: Aov,
+    /// What the scene uses and which integrator variant rendered it.
+    features: Features,
     /// With `--aov cost`: the camera rays' mean nodes, triangle tests and restarts.
     #[serde(skip_serializing_if = "Option::is_none")]
     mean_nodes: Option<f64>,
@@ -123,6 +126,7 @@ pub fn run(r: RenderArgs) -> Result<ExitCode> {
             traversal: img.traversal,
             dispatch: s.dispatch,
             aov: s.aov,
+            features: features::analyse(c, &s),
             mean_nodes: cost_mean(0),
             mean_tests: cost_mean(1),
             mean_restarts: cost_mean(2),

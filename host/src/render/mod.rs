@@ -3,6 +3,7 @@
 //! file (`kdc`), the CPU reference (`cpu`), the wgpu runner of the rust-gpu kernel (`gpu`), the
 //! CPU ≡ GPU check (`verify`) and the ray-casting benchmark (`raybench`).
 pub mod cpu;
+pub mod features;
 pub mod gpu;
 pub mod kdc;
 pub mod load;

@@ -1,0 +1,119 @@
+//! Scene analysis: what a loaded scene with its render settings uses (`shared::features`), for
+//! `render --json` (`features`) and for choosing a specialised variant of the integrator. Only
+//! the generic variant exists so far, and every render reports it.
+use crate::render::Compiled;
+use crate::settings::RenderSettings;
+use serde::Serialize;
+use shared::features::{
+    FEATURE_DIFFUSE, FEATURE_EMITTERS, FEATURE_ENVIRONMENT, FEATURE_INDIRECT, FEATURE_MANY_EMITTERS,
+};
+use shared::layout::MATERIAL_DIFFUSE;
+use shared::material::is_emissive;
+use shared::vecmath::{max_component, xyz};
+
+/// The feature set and the facts behind it.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Features {
+    /// `shared::features` bits.
+    pub bits: u32,
+    /// Emitting triangles.
+    pub emitters: usize,
+    /// Their total power, Σ area × luminance of the emitted radiance (scene units).
+    pub emitter_power: f64,
+    /// "black" or "constant".
+    pub environment: &'static str,
+    /// Material kinds present.
+    pub materials: Vec<&'static str>,
+    /// Textures and alpha masks (none can be rendered yet).
+    pub textures: bool,
+    pub alpha_masks: bool,
+    /// Indirect bounces allowed.
+    pub bounces: u32,
+    /// Whether light can reach the camera after a bounce.
+    pub indirect: bool,
+    /// The integrator variant that renders it.
+    pub variant: &'static str,
+}
+
+pub fn analyse(c: &Compiled, s: &RenderSettings) -> Features {
+    let scene = &c.scene;
+    let emitters = scene.lights.len();
+    let emitter_power = scene
+        .lights
+        .iter()
+        .map(|l| {
+            let m = &scene.materials[scene.info[l.triangle as usize].material as usize];
+            l.area as f64 * shared::vecmath::luminance(xyz(m.emission)) as f64
+        })
+        .sum();
+    let environment = max_component(s.environment) > 0.0;
+    // Materials that triangles use (a scene file may define more).
+    let mut used = vec![false; scene.materials.len()];
+    for t in &scene.info {
+        used[t.material as usize] = true;
+    }
+    let used: Vec<_> = scene.materials.iter().zip(&used).filter(|(_, &u)| u).map(|(m, _)| m).collect();
+    let diffuse = used.iter().any(|m| m.kind == MATERIAL_DIFFUSE);
+    let reflects = used.iter().any(|m| max_component(xyz(m.albedo)) > 0.0);
+    let lit = emitters > 0 || environment || used.iter().any(|m| is_emissive(m));
+    let indirect = lit && reflects && s.max_bounces > 0;
+    let mut bits = 0;
+    for (on, bit) in [
+        (emitters > 0, FEATURE_EMITTERS),
+        (emitters > 1, FEATURE_MANY_EMITTERS),
+        (environment, FEATURE_ENVIRONMENT),
+        (diffuse, FEATURE_DIFFUSE),
+        (indirect, FEATURE_INDIRECT),
+    ] {
+        if on {
+            bits |= bit;
+        }
+    }
+    Features {
+        bits,
+        emitters,
+        emitter_power,
+        environment: if environment { "constant" } else { "black" },
+        materials: if diffuse { vec!["diffuse"] } else { vec![] },
+        textures: false,
+        alpha_masks: false,
+        bounces: s.max_bounces,
+        indirect,
+        variant: "generic",
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::procedural::{emitter, furnace};
+    use crate::settings::camera::Camera;
+    use shared::features::FEATURES_ALL;
+    use shared::glam::{DVec3, Vec3};
+
+    fn settings(bounces: u32, environment: Vec3) -> RenderSettings {
+        let camera = Camera { eye: DVec3::new(0.0, 0.0, 5.0), target: DVec3::ZERO, up: DVec3::Y, fov_deg: 30.0 };
+        RenderSettings { max_bounces: bounces, environment, ..RenderSettings::with_camera(camera) }
+    }
+
+    #[test]
+    fn the_set_says_what_the_scene_uses() {
+        // A box that emits and reflects everywhere: many emitters, indirect light.
+        let c = crate::compile(furnace(0.5, 1.0).unwrap(), Default::default());
+        let f = analyse(&c, &settings(3, Vec3::ZERO));
+        assert_eq!(f.bits, FEATURE_EMITTERS | FEATURE_MANY_EMITTERS | FEATURE_DIFFUSE | FEATURE_INDIRECT);
+        assert_eq!(f.emitters, 12);
+        // Six faces of area 4, emission 1 (luminance 1).
+        assert!((f.emitter_power - 24.0).abs() < 1e-4, "{}", f.emitter_power);
+        // Direct light only: nothing arrives after a bounce.
+        assert_eq!(analyse(&c, &settings(0, Vec3::ZERO)).bits & FEATURE_INDIRECT, 0);
+        // An emitting quad under a grey sky.
+        let c = crate::compile(emitter(Vec3::ONE, true).unwrap(), Default::default());
+        let f = analyse(&c, &settings(4, Vec3::splat(0.2)));
+        assert_eq!(f.environment, "constant");
+        assert_ne!(f.bits & FEATURE_ENVIRONMENT, 0);
+        assert_eq!(f.emitters, 2);
+        assert_eq!(f.variant, "generic");
+        assert_eq!(f.bits & !FEATURES_ALL, 0);
+    }
+}

@@ -336,7 +336,8 @@ mod tests {
                 *lane = match (case + l) % 5 {
                     0 => base,
                     1 => tri([r(), r(), r()], [r(), r(), r()], [r(), r(), r()]),
-                    2 => Triangle { v0: base.v1, v1: base.v0, v2: tri([r(), r(), r()], [0.0; 3], [0.0; 3]).v0 }, // shares an edge
+                    // Shares an edge with `base`.
+                    2 => Triangle { v0: base.v1, v1: base.v0, v2: tri([r(), r(), r()], [0.0; 3], [0.0; 3]).v0 },
                     3 => tri([0.0; 3], [0.0; 3], [0.0; 3]), // degenerate
                     _ => tri([r(), r(), 0.25], [r(), r(), 0.25], [r(), r(), 0.25]), // axis-aligned
                 };

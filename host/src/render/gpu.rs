@@ -118,9 +118,17 @@ impl Gpu {
         let all = pollster::block_on(instance().enumerate_adapters(wgpu::Backends::PRIMARY));
         let names: Vec<String> = all.iter().map(|a| a.get_info().name).collect();
         let adapter = match name {
-            Some(n) => all.into_iter().find(|a| a.get_info().name.to_lowercase().contains(&n.to_lowercase())).ok_or_else(|| anyhow!("no GPU adapter matches {n:?}; found {names:?}"))?,
+            Some(n) => {
+                let wanted = n.to_lowercase();
+                all.into_iter()
+                    .find(|a| a.get_info().name.to_lowercase().contains(&wanted))
+                    .ok_or_else(|| anyhow!("no GPU adapter matches {n:?}; found {names:?}"))?
+            }
             None => all.into_iter().next().ok_or_else(|| {
-                anyhow!("no GPU adapter found (Vulkan, Metal or DX12). On Linux without a GPU, install Mesa's lavapipe: apt-get install mesa-vulkan-drivers libvulkan1")
+                anyhow!(
+                    "no GPU adapter found (Vulkan, Metal or DX12). On Linux without a GPU, install Mesa's \
+                     lavapipe: apt-get install mesa-vulkan-drivers libvulkan1"
+                )
             })?,
         };
         let info = adapter.get_info();

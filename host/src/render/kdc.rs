@@ -11,8 +11,8 @@
 //! | 12 | 4 | JSON header length in bytes, a multiple of 16 (space-padded) |
 //! | 16 | 8 | payload length: everything after these 32 bytes |
 //! | 24 | 8 | XXH3-64 of every other byte of the file (bytes 0..24, then 32..) |
-//! | 32 | … | JSON header: writer, build settings (serde, never listed by hand), scene settings, material names, bounds, section counts |
-//! | … | … | sections, each a packed array of the `shared::layout` struct: triangles, triangle info, materials, lights, k-d nodes, triangle indices |
+//! | 32 | … | JSON header: writer, build settings (serde), scene settings, material names, bounds, counts |
+//! | … | … | sections of packed `shared::layout` structs: triangles, triangle info, materials, lights, nodes, indices |
 //!
 //! Reading trusts nothing: the version is checked before anything else, every section size is
 //! derived from the header's counts with checked arithmetic and must add up to the file's actual
@@ -217,7 +217,10 @@ pub fn decode_from(path: &Path, input: &dyn ReadAt, len: u64) -> Result<KdcScene
     }
     let version = u32_at(&fixed, 8);
     if version != FORMAT_VERSION {
-        bail!("{name}: .kdc format version {version}, but this kdtrace reads version {FORMAT_VERSION}: compile the scene again with `kdtrace compile`");
+        bail!(
+            "{name}: .kdc format version {version}, but this kdtrace reads version {FORMAT_VERSION}: compile the \
+             scene again with `kdtrace compile`"
+        );
     }
     let header_len = u32_at(&fixed, 12) as u64;
     let payload_len = u64_at(&fixed, 16);

@@ -7,9 +7,10 @@
 //!
 //! The exact cost takes two divisions, so a plane is first screened by an estimate that
 //! multiplies where the cost divides (`Sah::estimate`); only the planes the estimate cannot rule
-//! out against the best so far get the exact cost, which alone decides. The sweep takes its events in groups of `LANES` (`run_masks`) and blocks of `BLOCK`,
-//! and passes over a group or block whole when a bound on every plane in it lies above the best
-//! so far. The tests compare it, bit for bit, with the plain sweep that prices every plane.
+//! out against the best so far get the exact cost, which alone decides. The sweep takes its
+//! events in groups of `LANES` (`run_masks`) and blocks of `BLOCK`, and passes over a group or
+//! block whole when a bound on every plane in it lies above the best so far. The tests compare
+//! it, bit for bit, with the plain sweep that prices every plane.
 use super::event::{Event, END, PLANAR, REFERENCE_BITS, START};
 use super::run_masks::{kind_counts, run_masks, Group, LANES};
 use super::{Node, Sah};

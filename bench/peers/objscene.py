@@ -1,6 +1,6 @@
 """The scene exactly as `kdtrace render` sees it, for the peer renderers' drivers.
 
-kdtrace loads OBJ + MTL with tobj (host/src/obj.rs): polygons are triangulated as fans from the
+kdtrace loads OBJ + MTL with tobj (host/src/scene/obj.rs): polygons are triangulated as fans from the
 first vertex, `Kd` is the Lambertian albedo, `Ke` the emitted radiance (one-sided, from the side the
 normal (v1 - v0) x (v2 - v0) points to), and a missing or unknown material is grey 0.5 diffuse.
 This module reads the same files the same way and returns the triangles split by material, so the

@@ -1,6 +1,6 @@
 //! The SAH tree of every mesh in `tests/data/meshes` passes `validate`, stays within the depth
 //! and reference budgets, and does not depend on the number of build threads. (`bench/kdtree.sh`
-//! builds and validates the larger public set in `../shared/scenes`.)
+//! builds and validates the larger public set the benchmarks read.)
 #[path = "common/paths.rs"]
 mod paths;
 use kdtrace::{

@@ -54,6 +54,12 @@ fn threshold(best: &Option<Plane>) -> f64 {
 }
 
 impl Sweep {
+    /// The sweep along `axis` of a voxel spanning `lo..hi` on it, whose other two extents are
+    /// `e1` and `e2` and whose surface area is `area`, priced with `intersection_cost`.
+    fn new(axis: usize, lo: f32, hi: f32, (e1, e2): (f64, f64), area: f64, intersection_cost: f64) -> Self {
+        Sweep { face: e1 * e2, rim: e1 + e2, area, lo, hi, scale: 2.0 * intersection_cost / area, axis }
+    }
+
     /// Half the surface areas of the parts of the voxel below and above `pos`.
     #[inline]
     fn faces(&self, pos: f32) -> (f64, f64) {
@@ -134,17 +140,8 @@ impl Sah<'_> {
         let n = node.triangles.len();
         let mut best = None;
         for (k, events) in node.events.iter().enumerate() {
-            let (lo, hi) = (voxel.lo[k], voxel.hi[k]);
-            let (e1, e2) = (voxel.extent((k + 1) % 3), voxel.extent((k + 2) % 3));
-            let sweep = Sweep {
-                face: e1 * e2,
-                rim: e1 + e2,
-                area,
-                lo,
-                hi,
-                scale: 2.0 * self.intersection_cost / area,
-                axis: k,
-            };
+            let extents = (voxel.extent((k + 1) % 3), voxel.extent((k + 2) % 3));
+            let sweep = Sweep::new(k, voxel.lo[k], voxel.hi[k], extents, area, self.intersection_cost);
             self.sweep(events, n, &sweep, &mut best);
         }
         best
@@ -430,15 +427,7 @@ mod tests {
             sort_events(&mut events, &mut Vec::new());
             let (e1, e2) = (1.0 + (next() % 5) as f64, 0.5 + (next() % 3) as f64);
             let area = 2.0 * (e1 * e2 + (e1 + e2) * (hi - lo) as f64);
-            let sweep = Sweep {
-                face: e1 * e2,
-                rim: e1 + e2,
-                area,
-                lo,
-                hi,
-                scale: 2.0 * sah.intersection_cost / area,
-                axis: trial % 3,
-            };
+            let sweep = Sweep::new(trial % 3, lo, hi, (e1, e2), area, sah.intersection_cost);
             let want = plain_sweep(&sah, &events, n, &sweep, None);
             let mut best = None;
             sah.sweep(&events, n, &sweep, &mut best);
@@ -453,7 +442,7 @@ mod tests {
             // hold it are screened against a threshold just above their least cost. A bound
             // that overshoots by a single leaf test passes it over.
             let narrower = e1 * (1.0 - 1e-9);
-            let twin = Sweep { face: narrower * e2, rim: narrower + e2, axis: (trial + 1) % 3, ..sweep };
+            let twin = Sweep::new((trial + 1) % 3, lo, hi, (narrower, e2), area, sah.intersection_cost);
             let want = plain_sweep(&sah, &events, n, &twin, want);
             sah.sweep(&events, n, &twin, &mut best);
             assert_eq!(key(best), key(want), "trial {trial}, second axis: {n} references, leaf block {leaf_block}");

@@ -68,19 +68,18 @@ impl Files for InMemory {
 pub fn input_size(path: &Path, cap: u64) -> io::Result<u64> {
     let meta = std::fs::metadata(path)?;
     let t = meta.file_type();
-    let other = if t.is_dir() {
-        "a directory"
-    } else if t.is_fifo() {
-        "a FIFO"
-    } else if t.is_char_device() || t.is_block_device() {
-        "a device"
-    } else if t.is_socket() {
-        "a socket"
-    } else {
-        ""
-    };
-    if !other.is_empty() || !t.is_file() {
-        let what = if other.is_empty() { "not a regular file" } else { other };
+    if !t.is_file() {
+        let what = if t.is_dir() {
+            "a directory"
+        } else if t.is_fifo() {
+            "a FIFO"
+        } else if t.is_char_device() || t.is_block_device() {
+            "a device"
+        } else if t.is_socket() {
+            "a socket"
+        } else {
+            "something else"
+        };
         return Err(io::Error::new(io::ErrorKind::InvalidInput, format!("{what}, not a regular file")));
     }
     if meta.len() > cap {

@@ -8,7 +8,6 @@ use shared::features::{
     FEATURE_DIFFUSE, FEATURE_EMITTERS, FEATURE_ENVIRONMENT, FEATURE_INDIRECT, FEATURE_MANY_EMITTERS,
 };
 use shared::layout::MATERIAL_DIFFUSE;
-use shared::material::is_emissive;
 use shared::vecmath::{max_component, xyz};
 
 /// The feature set and the facts behind it.
@@ -55,8 +54,8 @@ pub fn analyse(c: &Compiled, s: &RenderSettings) -> Features {
     let used: Vec<_> = scene.materials.iter().zip(&used).filter(|(_, &u)| u).map(|(m, _)| m).collect();
     let diffuse = used.iter().any(|m| m.kind == MATERIAL_DIFFUSE);
     let reflects = used.iter().any(|m| max_component(xyz(m.albedo)) > 0.0);
-    let lit = emitters > 0 || environment || used.iter().any(|m| is_emissive(m));
-    let indirect = lit && reflects && s.max_bounces > 0;
+    // (Every emissive triangle is in the light table: `emitters` counts them all.)
+    let indirect = (emitters > 0 || environment) && reflects && s.max_bounces > 0;
     let mut bits = 0;
     for (on, bit) in [
         (emitters > 0, FEATURE_EMITTERS),

@@ -13,7 +13,9 @@ use kdtrace::{
     compile,
     kdbuild::BuildSettings,
     render::Compiled,
-    scene::{diffuse, procedural::icosphere, round_triangle, transform::Placement, Scene, WorldTriangle},
+    scene::{
+        diffuse, procedural::icosphere, round_triangle, transform::Placement, widen_triangle, Scene, WorldTriangle,
+    },
 };
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
@@ -45,8 +47,7 @@ fn configurations() -> Vec<(f32, f32)> {
 
 /// `tris` placed by `p` (in f64, each coordinate rounded to f32 once).
 fn placed(tris: Vec<Triangle>, p: Placement) -> Vec<Triangle> {
-    let mut world: Vec<WorldTriangle> =
-        tris.iter().map(|t| [t.v0, t.v1, t.v2].map(|v| v.truncate().as_dvec3())).collect();
+    let mut world: Vec<WorldTriangle> = tris.iter().map(widen_triangle).collect();
     p.apply(&mut world);
     world.iter().map(round_triangle).collect()
 }

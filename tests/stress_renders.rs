@@ -10,7 +10,7 @@ use kdtrace::{
     compile,
     kdbuild::BuildSettings,
     render::{cpu, gpu, verify::compare, Compiled, Rendered},
-    scene::{local_frame::to_local, obj, round_triangle, transform::Placement, Scene, WorldTriangle},
+    scene::{local_frame::to_local, obj, round_triangle, transform::Placement, widen_triangle, Scene, WorldTriangle},
     settings::{camera::Camera, RenderSettings, Traversal},
 };
 use paths::{mesh, repo};
@@ -26,8 +26,7 @@ fn no_progress(_: u64, _: u64) {}
 
 /// The scene with every vertex scaled by `scale` and moved by `shift` on each axis.
 fn placed(scene: &Scene, scale: f32, shift: f32) -> Compiled {
-    let mut world: Vec<WorldTriangle> =
-        scene.triangles.iter().map(|t| [t.v0, t.v1, t.v2].map(|v| v.truncate().as_dvec3())).collect();
+    let mut world: Vec<WorldTriangle> = scene.triangles.iter().map(widen_triangle).collect();
     let (scale, shift) = (scale as f64, shift as f64);
     Placement { scale: DVec3::splat(scale), translate: DVec3::splat(shift), ..Default::default() }.apply(&mut world);
     let tris = world.iter().map(round_triangle).collect();

@@ -41,20 +41,19 @@ struct Origin {
 fn origin_scene() -> Origin {
     let text = std::fs::read_to_string(mesh("CornellBox-Original/CornellBox-Original.obj")).unwrap();
     let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-    for v in vertices(&text) {
+    for v in text.lines().filter_map(vertex) {
         lo = lo.min(v);
         hi = hi.max(v);
     }
     Origin { centre: 0.5 * (lo + hi), text }
 }
 
-fn vertices(text: &str) -> impl Iterator<Item = DVec3> + '_ {
-    text.lines().filter_map(|l| {
-        let mut w = l.split_whitespace();
-        (w.next() == Some("v")).then(|| {
-            let c: Vec<f64> = w.take(3).map(|x| x.parse().unwrap()).collect();
-            DVec3::new(c[0], c[1], c[2])
-        })
+/// The point a `v x y z` line states, or `None` for any other line.
+fn vertex(line: &str) -> Option<DVec3> {
+    let mut w = line.split_whitespace();
+    (w.next() == Some("v")).then(|| {
+        let c: Vec<f64> = w.take(3).map(|x| x.parse().unwrap()).collect();
+        DVec3::new(c[0], c[1], c[2])
     })
 }
 
@@ -67,10 +66,8 @@ fn centred(p: DVec3, centre: DVec3) -> DVec3 {
 fn write_moved(o: &Origin, shift: DVec3, dir: &Path) -> PathBuf {
     let mut out = String::new();
     for line in o.text.lines() {
-        let mut w = line.split_whitespace();
-        if w.next() == Some("v") {
-            let c: Vec<f64> = w.take(3).map(|x| x.parse().unwrap()).collect();
-            let p = centred(DVec3::new(c[0], c[1], c[2]), o.centre) + shift;
+        if let Some(v) = vertex(line) {
+            let p = centred(v, o.centre) + shift;
             out.push_str(&format!("v {:?} {:?} {:?}\n", p.x, p.y, p.z));
         } else {
             out.push_str(line);

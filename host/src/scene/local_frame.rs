@@ -17,7 +17,7 @@
 //! coordinate's ulp is q or q/2 (q the ulp of the largest), the shift is a multiple of q, and each
 //! difference is a multiple of q/2 no larger than max |x| / 2 < 2^24 · q/2: representable. Axes
 //! that straddle or approach zero are left alone; they are not where precision is lost.
-use crate::scene::{Scene, WorldTriangle};
+use crate::scene::{widen_triangle, Scene, WorldTriangle};
 use shared::glam::{DVec3, Vec3};
 use shared::layout::Triangle;
 
@@ -57,21 +57,14 @@ pub fn place(world: &[WorldTriangle]) -> (Vec<Triangle>, DVec3) {
     (world.iter().map(|t| Triangle { v0: local(t[0]), v1: local(t[1]), v2: local(t[2]) }).collect(), origin)
 }
 
-/// An f32 `scene` moved by minus its shift, and the shift (the world position of the new
-/// origin). Every move is exact here (module docs).
+/// An f32 `scene` moved by minus its shift (`place`), and the shift (the world position of the
+/// new origin). Every move is exact here (module docs).
 pub fn to_local(mut scene: Scene) -> (Scene, DVec3) {
-    let origin = shift_for(scene.bounds_min.as_dvec3(), scene.bounds_max.as_dvec3());
-    if origin == DVec3::ZERO {
-        return (scene, origin);
-    }
-    let o = origin.as_vec3().extend(0.0);
-    for t in &mut scene.triangles {
-        t.v0 -= o;
-        t.v1 -= o;
-        t.v2 -= o;
-    }
-    scene.bounds_min -= origin.as_vec3();
-    scene.bounds_max -= origin.as_vec3();
+    let world: Vec<WorldTriangle> = scene.triangles.iter().map(widen_triangle).collect();
+    let (triangles, origin) = place(&world);
+    scene.triangles = triangles;
+    scene.bounds_min = point_to_local(scene.bounds_min.as_dvec3(), origin);
+    scene.bounds_max = point_to_local(scene.bounds_max.as_dvec3(), origin);
     (scene, origin)
 }
 

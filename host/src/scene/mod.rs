@@ -33,6 +33,11 @@ pub struct Scene {
 /// A triangle in world coordinates, f64 as read and placed.
 pub type WorldTriangle = [DVec3; 3];
 
+/// `t` in f64, exactly (the inverse of `round_triangle` for a triangle already in f32).
+pub fn widen_triangle(t: &Triangle) -> WorldTriangle {
+    [t.v0, t.v1, t.v2].map(|v| xyz(v).as_dvec3())
+}
+
 /// `t` rounded to f32 once per coordinate.
 pub fn round_triangle(t: &WorldTriangle) -> Triangle {
     let v = |p: DVec3| p.as_vec3().extend(0.0);

@@ -26,9 +26,14 @@ struct Case {
 const TRI: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
 
 fn render(scene: &str) -> Vec<String> {
+    render_args(&format!("{{dir}}/{scene}"))
+}
+
+/// `render SCENE` of a tiny image at one sample.
+fn render_args(scene: &str) -> Vec<String> {
     vec![
         "render".into(),
-        format!("{{dir}}/{scene}"),
+        scene.to_string(),
         "--out".into(),
         "{dir}/never.png".into(),
         "--spp".into(),
@@ -309,6 +314,22 @@ fn cases() -> Vec<Case> {
                 "0".into(),
             ],
             &["spp 0"],
+        ),
+        case(
+            "adaptive threshold 0",
+            vec![],
+            [render_args(&repo("scenes/cornell-box.obj")), vec!["--adaptive".into(), "0".into()]].concat(),
+            &["adaptive threshold 0"],
+        ),
+        case(
+            "more pilot samples than spp",
+            vec![],
+            [
+                render_args(&repo("scenes/cornell-box.obj")),
+                vec!["--adaptive".into(), "0.05".into(), "--min-spp".into(), "8".into()],
+            ]
+            .concat(),
+            &["min spp 8", "spp 1"],
         ),
         case(
             "unsupported output format",

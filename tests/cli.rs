@@ -64,7 +64,9 @@ fn renders_the_default_scene_on_both_devices_with_json() {
         // The Cornell box: its lamp (two triangles), diffuse walls, light after bounces.
         let f = &line["features"];
         assert_eq!((f["emitters"].as_u64(), f["environment"].as_str()), (Some(2), Some("black")), "{f}");
-        assert_eq!((f["indirect"].as_bool(), f["variant"].as_str()), (Some(true), Some("generic")), "{f}");
+        assert_eq!((f["indirect"].as_bool(), f["variant"].as_str()), (Some(true), Some("specialised")), "{f}");
+        // Everything but the environment: FEATURES_ALL without FEATURE_ENVIRONMENT.
+        assert_eq!((f["bits"].as_u64(), f["variant_bits"].as_u64()), (Some(27), Some(27)), "{f}");
         assert_eq!(
             (line["width"].as_u64(), line["height"].as_u64(), line["spp"].as_u64()),
             (Some(40), Some(30), Some(4))
@@ -185,4 +187,32 @@ fn missing_material_library_renders_grey() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).contains("material library not found"), "{}", stderr(&o));
+}
+
+/// `--specialize off` writes the same file as the specialised default, and says which ran;
+/// `--adaptive` reports the spread of samples per pixel.
+#[test]
+fn specialisation_and_adaptive_sampling_from_the_command_line() {
+    let scene = repo("scenes/uneven-noise.toml");
+    let json = |out: &Path, extra: &[&str]| {
+        let mut args = vec!["render", &scene, "--out", out.to_str().unwrap(), "--spp", "16", "--width", "24"];
+        args.extend_from_slice(&["--height", "18", "--json"]);
+        args.extend_from_slice(extra);
+        let o = kdtrace(&args);
+        assert!(o.status.success(), "{extra:?}: {}", stderr(&o));
+        let text = String::from_utf8(o.stdout).unwrap();
+        serde_json::from_str::<serde_json::Value>(text.lines().last().unwrap()).unwrap()
+    };
+    let (on, off) = (tmp("special.exr"), tmp("generic.exr"));
+    let a = json(&on, &[]);
+    let b = json(&off, &["--specialize", "off"]);
+    assert_eq!(a["features"]["variant"], "specialised");
+    assert_eq!(b["features"]["variant"], "generic");
+    assert_ne!(a["features"]["variant_bits"], b["features"]["variant_bits"]);
+    assert_eq!(std::fs::read(&on).unwrap(), std::fs::read(&off).unwrap(), "--specialize off changed the image");
+    let c = json(&tmp("adaptive.exr"), &["--adaptive", "0.2", "--min-spp", "4"]);
+    let (lo, mean, hi) = (c["spp_min"].as_u64().unwrap(), c["spp_mean"].as_f64().unwrap(), c["spp"].as_u64().unwrap());
+    assert!(lo as f64 <= mean && mean <= hi as f64 && hi <= 16 && lo < hi, "{c}");
+    assert_eq!(c["adaptive"]["mode"], "pilot");
+    assert_eq!(c["adaptive"]["min_spp"], 4);
 }

@@ -19,7 +19,7 @@ use kdtrace::{
     },
     kdbuild::BuildSettings,
     render::cpu,
-    settings::{camera::Camera, RenderSettings},
+    settings::{camera::Camera, Adaptive, AdaptiveMode, RenderSettings},
 };
 use shared::glam::DVec3;
 use std::path::PathBuf;
@@ -38,8 +38,9 @@ fn read(name: &str) -> LinearImage {
     LinearImage::new(w, h, px).unwrap()
 }
 
-/// Mean and unbiased variance over seeds of kdtrace's image, per pixel channel.
-fn kdtrace_seed_statistics() -> (LinearImage, LinearImage) {
+/// Mean and unbiased variance over seeds of kdtrace's image, per pixel channel; with
+/// `adaptive`, of adaptive renders (each seed's image is still one independent estimate).
+fn kdtrace_seed_statistics(adaptive: Option<Adaptive>) -> (LinearImage, LinearImage) {
     let loaded = kdtrace::load(&root().join("scenes/cornell-box.obj"), BuildSettings::default()).unwrap();
     let camera = Camera {
         eye: DVec3::new(0.278, 0.273, 0.8),
@@ -47,35 +48,25 @@ fn kdtrace_seed_statistics() -> (LinearImage, LinearImage) {
         up: DVec3::Y,
         fov_deg: 39.3076,
     };
-    let n = (SIZE * SIZE) as usize;
-    let (mut s1, mut s2) = (vec![[0f64; 3]; n], vec![[0f64; 3]; n]);
-    for seed in 1..=SEEDS {
-        let s = RenderSettings {
-            width: SIZE,
-            height: SIZE,
-            spp: SPP,
-            max_bounces: 6,
-            seed,
-            rr_start: 5,
-            ..RenderSettings::with_camera(camera)
-        };
-        let r = cpu::render(&loaded.compiled, &s, &|_, _| {}).unwrap();
-        assert_eq!(r.zeroed_samples(), 0);
-        for (i, p) in r.mean().iter().enumerate() {
-            for k in 0..3 {
-                s1[i][k] += p[k] as f64;
-                s2[i][k] += p[k] as f64 * p[k] as f64;
-            }
-        }
-    }
-    let k = SEEDS as f64;
-    let mean = s1.iter().map(|p| p.map(|v| (v / k) as f32)).collect();
-    let var = s1
-        .iter()
-        .zip(&s2)
-        .map(|(a, b)| [0, 1, 2].map(|c| ((b[c] - a[c] * a[c] / k) / (k - 1.0)).max(0.0) as f32))
+    let images: Vec<Vec<[f32; 3]>> = (1..=SEEDS)
+        .map(|seed| {
+            let s = RenderSettings {
+                width: SIZE,
+                height: SIZE,
+                spp: SPP,
+                max_bounces: 6,
+                seed,
+                rr_start: 5,
+                adaptive,
+                ..RenderSettings::with_camera(camera)
+            };
+            let r = cpu::render(&loaded.compiled, &s, &|_, _| {}).unwrap();
+            assert_eq!(r.zeroed_samples(), 0);
+            r.mean()
+        })
         .collect();
-    (LinearImage::new(SIZE, SIZE, mean).unwrap(), LinearImage::new(SIZE, SIZE, var).unwrap())
+    let stats = PixelStats::of_images(SIZE, SIZE, &images).unwrap();
+    (stats.mean, stats.variance)
 }
 
 /// The per-pixel test with the reference's standard error folded into the variance:
@@ -97,7 +88,7 @@ fn cornell_box_matches_mitsuba_per_pixel_and_in_mean() {
     let reference = read("cornell-box-mitsuba-32.exr");
     let stderr = read("cornell-box-mitsuba-32-stderr.exr");
     assert_eq!((reference.width, reference.height), (SIZE, SIZE));
-    let (mean, var) = kdtrace_seed_statistics();
+    let (mean, var) = kdtrace_seed_statistics(None);
 
     let (_, _, _, ratio, _) = pointwise(&reference, &mean).unwrap();
     let t = test_against(&reference, &stderr, &mean, &var);
@@ -119,4 +110,19 @@ fn cornell_box_matches_mitsuba_per_pixel_and_in_mean() {
         LinearImage::new(SIZE, SIZE, reference.pixels.iter().map(|p| p.map(|c| c * 1.02)).collect()).unwrap();
     let (_, _, _, ratio_bright, _) = pointwise(&brighter, &mean).unwrap();
     assert!((ratio_bright - 1.0).abs() > 0.01, "2% brighter reference accepted: ratio {ratio_bright}");
+}
+
+/// Adaptive sampling's unbiased mode passes the same per-pixel test: its budgets come from a
+/// pilot whose samples the image does not average.
+#[test]
+fn adaptive_pilot_mode_matches_mitsuba_per_pixel() {
+    let reference = read("cornell-box-mitsuba-32.exr");
+    let stderr = read("cornell-box-mitsuba-32-stderr.exr");
+    let adaptive = Adaptive { threshold: 0.05, min_spp: 16, mode: AdaptiveMode::Pilot };
+    let (mean, var) = kdtrace_seed_statistics(Some(adaptive));
+    let (_, _, _, ratio, _) = pointwise(&reference, &mean).unwrap();
+    let t = test_against(&reference, &stderr, &mean, &var);
+    eprintln!("adaptive (pilot): mean ratio kdtrace/Mitsuba {ratio:.5}; per-pixel test: {t:?}");
+    assert!((ratio - 1.0).abs() < 0.01, "image mean ratio {ratio}");
+    assert!(t.pass && t.tests == 3 * (SIZE * SIZE) as u64, "{t:?}");
 }

@@ -5,12 +5,19 @@
 //! numbers and workgroup sizes are `shared::layout::binding` and its group sizes, written out as
 //! literals because `#[spirv(...)]` takes no constants; the host's test
 //! `kernel_bindings_match_the_layout` checks them.
+//!
+//! The render entry points take the integrator's variant as specialisation constants (ids and
+//! defaults: `shared::features::spec_id`, `FEATURES_ALL`, `FROM_PARAMS`; literals for the same
+//! reason, checked by the same test): the defaults give the generic code, and a pipeline created
+//! with other values is that variant, compiled without what its feature set leaves out.
 #![no_std]
 
-use shared::glam::{UVec3, Vec4};
-use shared::integrator::render_pixel;
+use shared::features::Variant;
+use shared::glam::{UVec3, UVec4, Vec4};
+use shared::integrator::{render_pixel, render_samples};
 use shared::layout::{
-    KdNode, Light, Material, RayQuery, RayResult, RenderParams, TriBlock, Triangle, TriangleInfo, PERSISTENT_GROUP,
+    KdNode, Light, Material, RayQuery, RayResult, RenderParams, TriBlock, Triangle, TriangleInfo, LIST_GROUP,
+    PERSISTENT_GROUP,
 };
 use shared::raycast::cast_ray;
 use shared::scene::SceneView;
@@ -23,6 +30,9 @@ use spirv_std::spirv;
 #[allow(clippy::too_many_arguments)]
 pub fn render_pass(
     #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(spec_constant(id = 0, default = 31))] features: u32,
+    #[spirv(spec_constant(id = 1, default = 4294967295))] max_bounces: u32,
+    #[spirv(spec_constant(id = 2, default = 4294967295))] rr_start: u32,
     #[spirv(uniform, descriptor_set = 0, binding = 0)] params: &RenderParams,
     #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] nodes: &[KdNode],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] indices: &[u32],
@@ -40,7 +50,8 @@ pub fn render_pass(
     }
     let scene = SceneView::new(params, nodes, indices, blocks, triangles, info, materials, lights);
     let pixel = (id.y * params.width + id.x) as usize;
-    render_pixel(&scene, params, id.x, id.y, &mut accum[pixel], &mut accum_sq[pixel], &mut primary[pixel]);
+    let v = Variant::from_spec(features, max_bounces, rr_start, params);
+    render_pixel(&scene, params, v, id.x, id.y, &mut accum[pixel], &mut accum_sq[pixel], &mut primary[pixel]);
 }
 
 /// Persistent threads (Aila & Laine 2009): a fixed grid of workgroups, each taking batches of
@@ -54,6 +65,9 @@ pub fn render_pass(
 pub fn render_persistent(
     #[spirv(local_invocation_index)] lane: u32,
     #[spirv(workgroup)] batch: &mut u32,
+    #[spirv(spec_constant(id = 0, default = 31))] features: u32,
+    #[spirv(spec_constant(id = 1, default = 4294967295))] max_bounces: u32,
+    #[spirv(spec_constant(id = 2, default = 4294967295))] rr_start: u32,
     #[spirv(uniform, descriptor_set = 0, binding = 0)] params: &RenderParams,
     #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] nodes: &[KdNode],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] indices: &[u32],
@@ -68,6 +82,7 @@ pub fn render_persistent(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 12)] accum_sq: &mut [Vec4],
 ) {
     let scene = SceneView::new(params, nodes, indices, blocks, triangles, info, materials, lights);
+    let v = Variant::from_spec(features, max_bounces, rr_start, params);
     let total = params.width * params.height;
     let mut running = true;
     let mut round = 0;
@@ -93,10 +108,46 @@ pub fn render_persistent(
             if pixel < total {
                 let (x, y) = (pixel % params.width, pixel / params.width);
                 let i = pixel as usize;
-                render_pixel(&scene, params, x, y, &mut accum[i], &mut accum_sq[i], &mut primary[i]);
+                render_pixel(&scene, params, v, x, y, &mut accum[i], &mut accum_sq[i], &mut primary[i]);
             }
         }
     }
+}
+
+/// Adaptive sampling: one invocation per entry of a list of live pixels, entry `i` naming a
+/// pixel (`x`), the first sample it adds in this pass (`y`) and how many (`z`). The list has
+/// `params.live_count` entries; the grid is two-dimensional so that a list longer than one
+/// dimension's 65,535 workgroups still fits in one dispatch.
+#[spirv(compute(threads(64, 1, 1)))]
+#[allow(clippy::too_many_arguments)]
+pub fn render_list(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(num_workgroups)] groups: UVec3,
+    #[spirv(spec_constant(id = 0, default = 31))] features: u32,
+    #[spirv(spec_constant(id = 1, default = 4294967295))] max_bounces: u32,
+    #[spirv(spec_constant(id = 2, default = 4294967295))] rr_start: u32,
+    #[spirv(uniform, descriptor_set = 0, binding = 0)] params: &RenderParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] nodes: &[KdNode],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] indices: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] triangles: &[Triangle],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] info: &[TriangleInfo],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] materials: &[Material],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] lights: &[Light],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 13)] blocks: &[TriBlock],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] accum: &mut [Vec4],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] primary: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 12)] accum_sq: &mut [Vec4],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 14)] live: &[UVec4],
+) {
+    let i = id.y * groups.x * LIST_GROUP + id.x;
+    if i >= params.live_count {
+        return;
+    }
+    let scene = SceneView::new(params, nodes, indices, blocks, triangles, info, materials, lights);
+    let v = Variant::from_spec(features, max_bounces, rr_start, params);
+    let e = live[i as usize];
+    let (x, y, pixel) = (e.x % params.width, e.x / params.width, e.x as usize);
+    render_samples(&scene, params, v, x, y, e.y, e.z, &mut accum[pixel], &mut accum_sq[pixel], &mut primary[pixel]);
 }
 
 /// One invocation per ray of a batch: the closest (or any) hit and the traversal's work.

@@ -1,7 +1,12 @@
-//! What a scene uses, as bits of one `u32`: the form a specialised variant of the integrator is
-//! chosen by on either device (a rust-gpu specialisation constant is a `u32`, a CPU variant a
-//! const generic). The host finds the set when it loads a scene (`host::render::features`).
-//! Each bit is a thing some scenes do not need: a variant compiled without it skips that work.
+//! What a scene uses, as bits of one `u32`, and the variant of the integrator compiled for it.
+//!
+//! A rust-gpu specialisation constant is a `u32` and a CPU variant a const generic: either way
+//! the integrator reads its feature set through `Variant::has`, and a variant whose bit is off
+//! leaves that work out (the compiler removes the branch). The host finds the set when it loads a
+//! scene (`host::render::features`). Each bit gates work that the generic code (every bit set)
+//! would do to no effect on a scene without the feature, so both give the same image bit for bit:
+//! a new feature is one bit here and one `has` test around its code.
+use crate::layout::RenderParams;
 
 /// At least one emitting triangle: next-event estimation and MIS have something to sample.
 pub const FEATURE_EMITTERS: u32 = 1 << 0;
@@ -11,8 +16,75 @@ pub const FEATURE_MANY_EMITTERS: u32 = 1 << 1;
 pub const FEATURE_ENVIRONMENT: u32 = 1 << 2;
 /// Lambertian diffuse materials are present (one bit per material kind from here on).
 pub const FEATURE_DIFFUSE: u32 = 1 << 3;
-/// Light can reach the camera after a bounce: there is a source, a reflecting material and at
-/// least one bounce allowed. Without it a path ends at its first hit.
+/// Light can reach the camera by reflection: there is a source (an emitter or the environment)
+/// and a material that reflects. Without it a path ends at its first hit, after its emission.
 pub const FEATURE_INDIRECT: u32 = 1 << 4;
 /// Every feature: the generic code, which serves any scene.
 pub const FEATURES_ALL: u32 = (1 << 5) - 1;
+/// The material-kind bits: when exactly one is set, material dispatch is skipped.
+pub const FEATURE_MATERIALS: u32 = FEATURE_DIFFUSE;
+
+/// A bounce limit or roulette start given by specialisation constant: this value (the kernel's
+/// default) means "read it from `RenderParams`".
+pub const FROM_PARAMS: u32 = u32::MAX;
+
+/// The specialisation constants' ids in the kernel (`#[spirv(spec_constant(id = N))]`), which
+/// the host sets through wgpu's pipeline overrides (keys: the ids as decimal strings).
+pub mod spec_id {
+    /// The feature set (default `FEATURES_ALL`).
+    pub const FEATURES: u32 = 0;
+    /// The bounce limit (default `FROM_PARAMS`).
+    pub const MAX_BOUNCES: u32 = 1;
+    /// The bounce from which Russian roulette may end a path (default `FROM_PARAMS`).
+    pub const RR_START: u32 = 2;
+}
+
+/// What one variant of the integrator is built for: the feature set, and the bounce limit and
+/// roulette start (constants in a specialised GPU pipeline, read from the parameters elsewhere).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Variant {
+    pub features: u32,
+    pub max_bounces: u32,
+    pub rr_start: u32,
+}
+
+impl Variant {
+    /// The kernel's defaults: the generic code, limits from the parameters.
+    pub const GENERIC_SPEC: Variant =
+        Variant { features: FEATURES_ALL, max_bounces: FROM_PARAMS, rr_start: FROM_PARAMS };
+
+    /// The generic code: every feature, limits from the parameters.
+    #[inline(always)]
+    pub fn generic(p: &RenderParams) -> Self {
+        Self::new(FEATURES_ALL, p)
+    }
+
+    /// Feature set `features`, limits from the parameters (the CPU's const-generic variants).
+    #[inline(always)]
+    pub fn new(features: u32, p: &RenderParams) -> Self {
+        Self { features, max_bounces: p.max_bounces, rr_start: p.rr_start }
+    }
+
+    /// From the kernel's specialisation constants: each limit is its constant unless that is
+    /// `FROM_PARAMS`.
+    #[inline(always)]
+    pub fn from_spec(features: u32, max_bounces: u32, rr_start: u32, p: &RenderParams) -> Self {
+        Self {
+            features,
+            max_bounces: if max_bounces == FROM_PARAMS { p.max_bounces } else { max_bounces },
+            rr_start: if rr_start == FROM_PARAMS { p.rr_start } else { rr_start },
+        }
+    }
+
+    /// Whether this variant includes `bit`'s work.
+    #[inline(always)]
+    pub fn has(self, bit: u32) -> bool {
+        self.features & bit != 0
+    }
+
+    /// Whether `kind` is the only material kind present, so material dispatch can assume it.
+    #[inline(always)]
+    pub fn only_material(self, kind: u32) -> bool {
+        self.features & FEATURE_MATERIALS == kind
+    }
+}

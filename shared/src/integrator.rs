@@ -4,7 +4,12 @@
 //!
 //! Bounce counting: `max_bounces` counts indirect bounces, so 0 renders direct light only (a path
 //! of at most two segments after the camera: Mitsuba's `max_depth = max_bounces + 2`).
+//!
+//! Every function takes the `Variant` it runs as: what the scene's feature set leaves out is not
+//! done, and in a specialised build (a CPU monomorph, a GPU pipeline with specialisation
+//! constants) not compiled either.
 use crate::camera::primary_direction;
+use crate::features::{Variant, FEATURE_EMITTERS, FEATURE_ENVIRONMENT, FEATURE_INDIRECT, FEATURE_MANY_EMITTERS};
 use crate::glam::{Vec3, Vec4};
 use crate::kdtree::Hit;
 use crate::layout::{RenderParams, AOV_COST, NO_HIT, NO_LIGHT};
@@ -50,7 +55,8 @@ struct Path {
 /// returns early but contains no loop: a `break` out of this loop from inside inlined
 /// traversal code was miscompiled for whole subgroups on lavapipe (Mesa 22.3, LLVM 15), which
 /// lost every lane's sample when one lane left the loop that way.
-pub fn trace_sample(scene: &SceneView, p: &RenderParams, px: u32, py: u32, sample: u32) -> PathSample {
+#[inline(always)]
+pub fn trace_sample(scene: &SceneView, p: &RenderParams, v: Variant, px: u32, py: u32, sample: u32) -> PathSample {
     let mut rng = Sampler::new(p.sampler, py * p.width + px, sample, p.seed);
     let (jx, jy) = rng.next_2d();
     let mut path = Path {
@@ -74,9 +80,11 @@ pub fn trace_sample(scene: &SceneView, p: &RenderParams, px: u32, py: u32, sampl
             path.radiance = Vec3::new(hit.nodes as f32, hit.tests as f32, traced.restarts as f32);
             alive = false;
         } else if hit.is_hit() {
-            alive = shade_vertex(scene, p, &mut path, &mut rng, &hit);
+            alive = shade_vertex(scene, p, v, &mut path, &mut rng, &hit);
         } else {
-            path.radiance += path.beta * xyz(p.environment);
+            if v.has(FEATURE_ENVIRONMENT) {
+                path.radiance += path.beta * xyz(p.environment);
+            }
             alive = false;
         }
     }
@@ -85,15 +93,25 @@ pub fn trace_sample(scene: &SceneView, p: &RenderParams, px: u32, py: u32, sampl
 
 /// One path vertex: emission (MIS-weighted against light sampling), next-event estimation, then
 /// the BSDF sample that continues the path. Returns whether the path goes on.
-#[inline]
-fn shade_vertex(scene: &SceneView, p: &RenderParams, path: &mut Path, rng: &mut Sampler, hit: &Hit) -> bool {
+#[inline(always)]
+fn shade_vertex(
+    scene: &SceneView,
+    p: &RenderParams,
+    v: Variant,
+    path: &mut Path,
+    rng: &mut Sampler,
+    hit: &Hit,
+) -> bool {
     let dir = path.dir;
-    let last = path.bounce == p.max_bounces + 1;
+    // Without indirect light every vertex after the first adds exactly zero (nothing reflects,
+    // or nothing emits): the path ends at its first hit, after that hit's emission.
+    let last = !v.has(FEATURE_INDIRECT) | (path.bounce == v.max_bounces + 1);
+    let lights = v.has(FEATURE_EMITTERS) & (scene.light_count > 0);
     // This vertex's sample sets, drawn first: each is a chain of dependent hashes and
     // multiplications (`sobol`), which a CPU overlaps with the shading below when they start
     // here, not where their values are needed. The order of the sets is unchanged: the light
     // set (when there are lights), then the BSDF set; the last vertex draws none.
-    let (u_select, u_light) = if (scene.light_count > 0) & !last { rng.next_2d() } else { (0.0, 0.0) };
+    let (u_select, u_light) = if lights & !last { rng.next_2d() } else { (0.0, 0.0) };
     let [ub1, ub2, u_roulette] = if last { [0.0; 3] } else { rng.next_3d() };
     let tri = &scene.triangles[hit.triangle as usize];
     let info = scene.info[hit.triangle as usize];
@@ -103,7 +121,8 @@ fn shade_vertex(scene: &SceneView, p: &RenderParams, path: &mut Path, rng: &mut 
     let surface = hit_point(tri, &TriangleHit { t: hit.t, u: hit.u, v: hit.v, w: hit.w });
     let pos = surface.p;
 
-    let le = emitted(mat, ng, dir);
+    // Only emitters emit, and every emitter is in the light table.
+    let le = if v.has(FEATURE_EMITTERS) { emitted(mat, ng, dir) } else { Vec3::ZERO };
     if (le.x > 0.0) | (le.y > 0.0) | (le.z > 0.0) {
         let mut weight = 1.0;
         if (path.bounce > 0) & (info.light != NO_LIGHT) {
@@ -123,13 +142,15 @@ fn shade_vertex(scene: &SceneView, p: &RenderParams, path: &mut Path, rng: &mut 
     let ns = if dot(ng, dir) < 0.0 { n } else { -n };
     let spawn = offset_ray_origin(pos, surface.error, ns);
 
-    if scene.light_count > 0 {
+    if lights {
         // The set's best-spread pair picks the light and the point on it: the picking dimension,
         // rescaled within the picked light's interval, is the point's first coordinate, so the
-        // points stay stratified over a light made of several triangles (a quad lamp).
-        let index = select_light(scene.lights, scene.light_count, u_select);
+        // points stay stratified over a light made of several triangles (a quad lamp). With one
+        // light the pick is light 0 and the rescaling the identity (its interval is [0, 1]).
+        let many = v.has(FEATURE_MANY_EMITTERS);
+        let index = if many { select_light(scene.lights, scene.light_count, u_select) } else { 0 };
         let light = scene.lights[index as usize];
-        let u1 = remap_in_light(scene.lights, index, u_select);
+        let u1 = if many { remap_in_light(scene.lights, index, u_select) } else { u_select };
         let ltri = &scene.triangles[light.triangle as usize];
         let (b0, b1, b2) = uniform_triangle(u1, u_light);
         let on_light = interpolate(ltri, b0, b1, b2);
@@ -139,7 +160,7 @@ fn shade_vertex(scene: &SceneView, p: &RenderParams, path: &mut Path, rng: &mut 
         let dist2 = length_squared(to_light);
         let wi = to_light * (1.0 / dist2.sqrt());
         let cos_l = -dot(nl, wi);
-        let (f, pdf_bsdf) = eval(mat, ns, wi);
+        let (f, pdf_bsdf) = eval(v, mat, ns, wi);
         if (cos_l > 0.0) & (pdf_bsdf > 0.0) & (dist2 > 0.0) {
             let light_pdf = light.pmf * dist2 / (cos_l * light.area);
             let target = offset_ray_origin(q, on_light.error, nl);
@@ -151,14 +172,14 @@ fn shade_vertex(scene: &SceneView, p: &RenderParams, path: &mut Path, rng: &mut 
         }
     }
 
-    let bs = sample_bsdf(mat, ns, ub1, ub2);
+    let bs = sample_bsdf(v, mat, ns, ub1, ub2);
     if bs.pdf <= 0.0 {
         return false;
     }
     path.beta *= bs.weight;
     path.bsdf_pdf = bs.pdf;
     path.bounce += 1;
-    if path.bounce >= p.rr_start {
+    if path.bounce >= v.rr_start {
         let survive = max_component(path.beta).min(RR_MAX_SURVIVAL);
         if u_roulette >= survive {
             return false;
@@ -170,27 +191,49 @@ fn shade_vertex(scene: &SceneView, p: &RenderParams, path: &mut Path, rng: &mut 
     true
 }
 
-/// Adds samples `[sample_start, sample_start + sample_count)` of pixel (x, y) to its running
-/// sums, in sample order, so every device sums the same numbers in the same order: `sum.xyz`
-/// radiance and `sum.w` the number of samples that were non-finite or negative and were zeroed;
-/// `sum_sq.xyz` the squared radiance, for the per-pixel variance (`sum_sq.w` unused). When the
-/// pass holds sample 0, `primary` gets the triangle its camera ray hit first. What every renderer
-/// (the CPU rows, both GPU kernels) does per pixel and pass.
+/// Adds this pass's samples (`p.sample_start`, `p.sample_count`) of pixel (x, y) to its running
+/// sums: what every renderer that gives all pixels the same samples (the CPU rows, both
+/// full-frame GPU kernels) does per pixel and pass.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
 pub fn render_pixel(
     scene: &SceneView,
     p: &RenderParams,
+    v: Variant,
     x: u32,
     y: u32,
     sum: &mut Vec4,
     sum_sq: &mut Vec4,
     primary: &mut u32,
 ) {
+    render_samples(scene, p, v, x, y, p.sample_start, p.sample_count, sum, sum_sq, primary);
+}
+
+/// Adds samples `[start, start + count)` of pixel (x, y) to its running sums, in sample order, so
+/// every device sums the same numbers in the same order: `sum.xyz` radiance and `sum.w` the
+/// number of samples that were non-finite or negative and were zeroed; `sum_sq.xyz` the squared
+/// radiance, for the per-pixel variance (`sum_sq.w` unused). When the range holds sample 0,
+/// `primary` gets the triangle its camera ray hit first.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub fn render_samples(
+    scene: &SceneView,
+    p: &RenderParams,
+    v: Variant,
+    x: u32,
+    y: u32,
+    start: u32,
+    count: u32,
+    sum: &mut Vec4,
+    sum_sq: &mut Vec4,
+    primary: &mut u32,
+) {
     let mut acc = *sum;
     let mut acc_sq = *sum_sq;
-    let mut s = p.sample_start;
-    let end = p.sample_start + p.sample_count;
+    let mut s = start;
+    let end = start + count;
     while s < end {
-        let r = trace_sample(scene, p, x, y, s);
+        let r = trace_sample(scene, p, v, x, y, s);
         if s == 0 {
             *primary = r.primary;
         }
@@ -201,4 +244,21 @@ pub fn render_pixel(
     }
     *sum = acc;
     *sum_sq = acc_sq;
+}
+
+/// `render_samples` compiled for the feature set `F`: a CPU variant, monomorphised, so what `F`
+/// leaves out is not in its code. `F = FEATURES_ALL` is the generic code.
+#[allow(clippy::too_many_arguments)]
+pub fn render_samples_for<const F: u32>(
+    scene: &SceneView,
+    p: &RenderParams,
+    x: u32,
+    y: u32,
+    start: u32,
+    count: u32,
+    sum: &mut Vec4,
+    sum_sq: &mut Vec4,
+    primary: &mut u32,
+) {
+    render_samples(scene, p, Variant::new(F, p), x, y, start, count, sum, sum_sq, primary);
 }

@@ -197,8 +197,9 @@ pub struct RenderParams {
     pub persistent_rounds: u32,
     /// `rng::SAMPLER_SOBOL` or `rng::SAMPLER_INDEPENDENT`.
     pub sampler: u32,
+    /// Entries of the live-pixel list (`render_list`; adaptive sampling).
+    pub live_count: u32,
     // Scalars, not an array: a uniform block aligns arrays to 16 bytes.
-    pub _pad1: u32,
     pub _pad2: u32,
 }
 
@@ -274,8 +275,10 @@ pub mod binding {
     pub const ACCUM_SQ: u32 = 12;
     /// The CPU leaf test's triangle blocks (read-only; a placeholder on the GPU).
     pub const BLOCKS: u32 = 13;
+    /// Adaptive sampling's list of live pixels and their sample ranges (read-only).
+    pub const LIVE: u32 = 14;
     /// Bindings in all: the uniform parameters, then storage buffers.
-    pub const COUNT: u32 = 14;
+    pub const COUNT: u32 = 15;
     /// Storage bindings the kernel writes; every other storage binding is read-only.
     pub const WRITABLE: [u32; 5] = [ACCUM, PRIMARY, RESULTS, QUEUE, ACCUM_SQ];
 }
@@ -285,5 +288,7 @@ pub const RENDER_GROUP_SIDE: u32 = 8;
 /// The persistent kernel's workgroup size, which is also the batch of pixels one workgroup takes
 /// from the queue.
 pub const PERSISTENT_GROUP: u32 = 64;
+/// The live-pixel list kernel's workgroup size (adaptive sampling).
+pub const LIST_GROUP: u32 = 64;
 /// The ray-casting kernel's workgroup size.
 pub const CAST_GROUP: u32 = 64;

@@ -1,4 +1,6 @@
-//! Materials: Lambertian reflection and one-sided area emission, dispatched on `Material::kind`.
+//! Materials: Lambertian reflection and one-sided area emission, dispatched on `Material::kind`
+//! unless the variant has one material kind only (`features::Variant::only_material`).
+use crate::features::{Variant, FEATURE_DIFFUSE};
 use crate::glam::Vec3;
 use crate::layout::{Material, MATERIAL_DIFFUSE};
 use crate::sampling::{cosine_hemisphere, orthonormal_basis, INV_PI};
@@ -15,8 +17,8 @@ pub struct BsdfSample {
 /// BSDF value f(wi) for a surface with shading normal `n` facing the incoming ray. Diffuse is
 /// two-sided (`n` is already flipped toward the viewer), as in Cycles.
 #[inline]
-pub fn eval(m: &Material, n: Vec3, wi: Vec3) -> (Vec3, f32) {
-    if m.kind == MATERIAL_DIFFUSE {
+pub fn eval(v: Variant, m: &Material, n: Vec3, wi: Vec3) -> (Vec3, f32) {
+    if v.only_material(FEATURE_DIFFUSE) | (m.kind == MATERIAL_DIFFUSE) {
         let c = dot(n, wi);
         if c <= 0.0 {
             return (Vec3::ZERO, 0.0);
@@ -28,11 +30,11 @@ pub fn eval(m: &Material, n: Vec3, wi: Vec3) -> (Vec3, f32) {
 
 /// Samples wi ∝ the BSDF's cosine lobe.
 #[inline]
-pub fn sample(m: &Material, n: Vec3, u1: f32, u2: f32) -> BsdfSample {
+pub fn sample(v: Variant, m: &Material, n: Vec3, u1: f32, u2: f32) -> BsdfSample {
     let local = cosine_hemisphere(u1, u2);
     let (t, b) = orthonormal_basis(n);
     let wi = t * local.x + b * local.y + n * local.z;
-    if m.kind == MATERIAL_DIFFUSE {
+    if v.only_material(FEATURE_DIFFUSE) | (m.kind == MATERIAL_DIFFUSE) {
         // f·cos/pdf = (ρ/π)·cos / (cos/π) = ρ.
         return BsdfSample { wi, weight: xyz(m.albedo), pdf: local.z * INV_PI };
     }

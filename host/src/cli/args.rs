@@ -1,7 +1,7 @@
 //! Options several commands share: the image options (the command line's form of
 //! `SceneSettings`, plus how to render) and the k-d build settings.
 use crate::kdbuild::{BuildSettings, Builder};
-use crate::settings::{Aov, Dispatch, SceneSettings, Traversal};
+use crate::settings::{AdaptiveMode, Aov, Dispatch, SceneSettings, Traversal, DEFAULT_MIN_SPP};
 use anyhow::Result;
 use clap::{Args, ValueEnum};
 use serde::Serialize;
@@ -55,6 +55,30 @@ pub struct ImageArgs {
     /// triangle tests; EXR: nodes, tests, restarts per pixel).
     #[arg(long, value_enum, default_value_t)]
     pub aov: Aov,
+    /// Run the integrator's variant for what the scene uses (on), or the generic code (off):
+    /// the same image bit for bit, in different times.
+    #[arg(long, value_enum, default_value_t = Switch::On)]
+    pub specialize: Switch,
+    /// Adaptive sampling to this relative error per pixel (σ of the mean over √(mean² + 0.01),
+    /// per channel; 0.03 aims at relMSE 1e-3); `--spp` is then the most a pixel gets.
+    #[arg(long, value_name = "THRESHOLD")]
+    pub adaptive: Option<f32>,
+    /// With --adaptive: samples every pixel gets first.
+    #[arg(long, value_name = "N", requires = "adaptive", default_value_t = DEFAULT_MIN_SPP)]
+    pub min_spp: u32,
+    /// With --adaptive: `pilot` (unbiased: a pilot pass fixes each pixel's budget and only the
+    /// samples after it are averaged) or `as-you-go` (pixels stop when their running estimate
+    /// has converged; biased, see README).
+    #[arg(long, value_enum, requires = "adaptive", default_value_t)]
+    pub adaptive_mode: AdaptiveMode,
+}
+
+/// A command-line on/off switch.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Switch {
+    On,
+    Off,
 }
 
 /// k-d tree build settings; defaults in `kdbuild::BuildSettings`.

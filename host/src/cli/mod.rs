@@ -11,7 +11,7 @@ mod tree;
 mod verify;
 
 use crate::render::{Compiled, Rendered};
-use crate::settings::RenderSettings;
+use crate::settings::{Adaptive, RenderSettings};
 use crate::{kdbuild, Loaded};
 use anyhow::{Context, Result};
 use args::{Device, ImageArgs};
@@ -93,6 +93,9 @@ fn settings(a: &ImageArgs, loaded: &Loaded, scene: &Path) -> Result<RenderSettin
     s.traversal = a.traversal;
     s.dispatch = a.dispatch;
     s.aov = a.aov;
+    s.specialize = a.specialize == args::Switch::On;
+    s.adaptive = a.adaptive.map(|threshold| Adaptive { threshold, min_spp: a.min_spp, mode: a.adaptive_mode });
+    s.check()?;
     Ok(s)
 }
 
@@ -144,7 +147,7 @@ fn run_device(device: Device, c: &Compiled, s: &RenderSettings, a: &ImageArgs) -
         }
         Device::Gpu => {
             let g = crate::render::gpu::Gpu::open(a.adapter.as_deref())?;
-            g.prepare(s.dispatch)?;
+            g.prepare(c, s)?;
             let t = Instant::now();
             let image = g.render(c, s, &report)?;
             DeviceRun { image, adapter: g.adapter.name.clone(), render_s: t.elapsed().as_secs_f64() }

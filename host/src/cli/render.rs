@@ -4,7 +4,7 @@ use super::{load, print_json, run_device, settings};
 use crate::files;
 use crate::image::io;
 use crate::render::features::{self, Features};
-use crate::settings::{Aov, Dispatch, SamplerKind, Traversal};
+use crate::settings::{Adaptive, Aov, Dispatch, SamplerKind, Traversal};
 use anyhow::{bail, Result};
 use clap::Args;
 use serde::Serialize;
@@ -37,8 +37,13 @@ struct RenderReport<'a> {
     dropped_degenerate: usize,
     nodes: usize,
     tree_depth: u32,
-    /// Samples per pixel rendered.
+    /// Samples per pixel rendered (with adaptive sampling, the most any pixel holds).
     spp: u32,
+    /// The fewest and the mean samples per pixel (equal to `spp` without adaptive sampling).
+    spp_min: u32,
+    spp_mean: f64,
+    /// Adaptive sampling's threshold, pilot samples and mode.
+    adaptive: Option<Adaptive>,
     /// The most it would have rendered (the spp asked for, or 2^20 under a time limit alone).
     spp_max: u32,
     time_limit_s: Option<f64>,
@@ -93,7 +98,8 @@ pub fn run(r: RenderArgs) -> Result<ExitCode> {
     if let Some(v) = &r.variance {
         io::write_image(v, s.width, s.height, &img.variance())?;
     }
-    let samples = s.width as f64 * s.height as f64 * img.spp as f64;
+    let spp_range = img.spp_range();
+    let samples = s.width as f64 * s.height as f64 * spp_range.1;
     if r.image.json {
         let cost_mean = |k: usize| {
             (s.aov == Aov::Cost).then(|| pixels.iter().map(|p| p[k] as f64).sum::<f64>() / pixels.len() as f64)
@@ -108,7 +114,10 @@ pub fn run(r: RenderArgs) -> Result<ExitCode> {
             dropped_degenerate: c.scene.dropped_degenerate,
             nodes: c.tree.nodes.len(),
             tree_depth: c.tree.depth,
-            spp: img.spp,
+            spp: spp_range.2,
+            spp_min: spp_range.0,
+            spp_mean: spp_range.1,
+            adaptive: s.adaptive,
             spp_max: s.spp,
             time_limit_s: s.time_limit_s,
             variance: &r.variance,

@@ -197,6 +197,39 @@ pub struct PixelStats {
     pub count: Vec<u64>,
 }
 
+impl PixelStats {
+    /// Per pixel channel the mean and unbiased variance over independent images of one scene
+    /// (renders with different seeds): each image one sample of the pixel's estimator, so the
+    /// test needs nothing of how each image was sampled (adaptive or not).
+    pub fn of_images(width: u32, height: u32, images: &[Vec<[f32; 3]>]) -> Result<Self> {
+        let n = (width * height) as usize;
+        if images.len() < 2 || images.iter().any(|i| i.len() != n) {
+            bail!("{} images for {width}x{height} pixels: need two or more of that size", images.len());
+        }
+        let k = images.len() as f64;
+        let (mut s1, mut s2) = (vec![[0f64; 3]; n], vec![[0f64; 3]; n]);
+        for image in images {
+            for (i, p) in image.iter().enumerate() {
+                for c in 0..3 {
+                    s1[i][c] += p[c] as f64;
+                    s2[i][c] += p[c] as f64 * p[c] as f64;
+                }
+            }
+        }
+        let mean = s1.iter().map(|a| a.map(|v| (v / k) as f32)).collect();
+        let variance = s1
+            .iter()
+            .zip(&s2)
+            .map(|(a, b)| [0, 1, 2].map(|c| ((b[c] - a[c] * a[c] / k) / (k - 1.0)).max(0.0) as f32))
+            .collect();
+        Ok(Self {
+            mean: LinearImage::new(width, height, mean)?,
+            variance: LinearImage::new(width, height, variance)?,
+            count: vec![images.len() as u64; n],
+        })
+    }
+}
+
 /// The outcome of `pixel_test`.
 #[derive(Clone, Debug, Serialize)]
 pub struct PixelTest {

@@ -1,18 +1,39 @@
 //! The CPU reference renderer: rayon over rows, each pixel through `shared::integrator`, the same
-//! function the GPU kernel runs. Non-finite samples are zeroed and logged with their pixel.
-use crate::render::{Compiled, Progress, Rendered};
+//! function the GPU kernel runs, monomorphised for the scene's feature set (`variant`).
+//! Non-finite samples are zeroed and logged with their pixel.
+use crate::render::{adaptive, Compiled, Progress, Rendered};
 use crate::settings::RenderSettings;
 use anyhow::Result;
 use rayon::prelude::*;
+use shared::features::FEATURES_ALL;
 use shared::glam::Vec4;
-use shared::integrator::render_pixel;
-use shared::layout::NO_HIT;
+use shared::integrator::render_samples_for;
+use shared::layout::{RenderParams, NO_HIT};
+use shared::scene::SceneView;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
 /// With a time limit, each pass is sized to take about this long, so the render stops close to
 /// its budget.
 const PASS_SECONDS: f64 = 0.25;
+/// Adaptive sampling adds at most this many samples per pixel and pass, so that a time limit
+/// is checked often.
+const ADAPTIVE_PASS_SAMPLES: u32 = 16;
+
+/// A monomorphised variant of the integrator: `render_samples_for::<F>`.
+pub type VariantFn = fn(&SceneView, &RenderParams, u32, u32, u32, u32, &mut Vec4, &mut Vec4, &mut u32);
+
+/// One compiled variant per feature set: `VARIANTS[bits]` is `render_samples_for::<bits>`.
+macro_rules! variants {
+    ($($bits:literal)*) => { [$(render_samples_for::<$bits> as VariantFn),*] };
+}
+static VARIANTS: [VariantFn; FEATURES_ALL as usize + 1] =
+    variants!(0 1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16 17 18 19 20 21 22 23 24 25 26 27 28 29 30 31);
+
+/// The CPU's variant of the integrator for feature bits `bits`.
+pub fn variant(bits: u32) -> VariantFn {
+    VARIANTS[(bits & FEATURES_ALL) as usize]
+}
 
 /// Renders on the CPU: rayon over image rows, every pixel through `shared::integrator`. Without a
 /// time limit all samples are one pass; with one, passes of whole samples for every pixel run
@@ -25,6 +46,30 @@ pub fn render(c: &Compiled, s: &RenderSettings, progress: Progress) -> Result<Re
     let mut sum = vec![Vec4::ZERO; n];
     let mut sum_sq = vec![Vec4::ZERO; n];
     let mut primary = vec![NO_HIT; n];
+    let render_samples = variant(crate::render::features::variant_bits(c, s));
+    if let Some(a) = s.adaptive {
+        let params = c.params(s, 0, 0)?;
+        let mut dev = CpuPasses {
+            scene: c.view(&params),
+            params,
+            render_samples,
+            width: w as usize,
+            sum: vec![Vec4::ZERO; n],
+            sum_sq: vec![Vec4::ZERO; n],
+            primary: vec![NO_HIT; n],
+        };
+        let outcome = adaptive::render(&mut dev, s, a, progress)?;
+        return Ok(Rendered {
+            width: w,
+            height: h,
+            spp: s.spp,
+            sum: dev.sum,
+            sum_sq: dev.sum_sq,
+            primary: dev.primary,
+            traversal: s.traversal,
+            counts: Some(outcome.counts),
+        });
+    }
     let total = w as u64 * h as u64 * s.spp as u64;
     let done = AtomicU64::new(0);
     let clock = Instant::now();
@@ -42,7 +87,9 @@ pub fn render(c: &Compiled, s: &RenderSettings, progress: Progress) -> Result<Re
             .for_each(|(y, ((sum, sum_sq), primary))| {
                 for x in 0..w as usize {
                     let before = sum[x].w;
-                    render_pixel(&scene, &params, x as u32, y as u32, &mut sum[x], &mut sum_sq[x], &mut primary[x]);
+                    let (px, py) = (x as u32, y as u32);
+                    let (start, count) = (params.sample_start, params.sample_count);
+                    render_samples(&scene, &params, px, py, start, count, &mut sum[x], &mut sum_sq[x], &mut primary[x]);
                     if sum[x].w > before {
                         eprintln!(
                             "warning: pixel ({x}, {y}): {} non-finite or negative sample(s) zeroed",
@@ -65,5 +112,64 @@ pub fn render(c: &Compiled, s: &RenderSettings, progress: Progress) -> Result<Re
             count = (fit as u32).max(1);
         }
     }
-    Ok(Rendered { width: w, height: h, spp: start, sum, sum_sq, primary, traversal: s.traversal })
+    Ok(Rendered { width: w, height: h, spp: start, sum, sum_sq, primary, traversal: s.traversal, counts: None })
+}
+
+/// Adaptive sampling's passes on the CPU: rayon over rows, each pixel its own range.
+struct CpuPasses<'a> {
+    scene: SceneView<'a>,
+    params: RenderParams,
+    render_samples: VariantFn,
+    width: usize,
+    sum: Vec<Vec4>,
+    sum_sq: Vec<Vec4>,
+    primary: Vec<u32>,
+}
+
+impl adaptive::Passes for CpuPasses<'_> {
+    fn pass(&mut self, ranges: &[[u32; 2]]) -> Result<()> {
+        let (w, scene, params, f) = (self.width, &self.scene, &self.params, self.render_samples);
+        self.sum
+            .par_chunks_mut(w)
+            .zip(self.sum_sq.par_chunks_mut(w))
+            .zip(self.primary.par_chunks_mut(w))
+            .zip(ranges.par_chunks(w))
+            .enumerate()
+            .for_each(|(y, (((sum, sum_sq), primary), ranges))| {
+                for (x, &[start, count]) in ranges.iter().enumerate() {
+                    if count > 0 {
+                        f(
+                            scene,
+                            params,
+                            x as u32,
+                            y as u32,
+                            start,
+                            count,
+                            &mut sum[x],
+                            &mut sum_sq[x],
+                            &mut primary[x],
+                        );
+                    }
+                }
+            });
+        Ok(())
+    }
+
+    fn max_per_pass(&self) -> u32 {
+        ADAPTIVE_PASS_SAMPLES
+    }
+
+    fn sums(&mut self) -> Result<(Vec<Vec4>, Vec<Vec4>)> {
+        Ok((self.sum.clone(), self.sum_sq.clone()))
+    }
+
+    fn clear(&mut self) -> Result<()> {
+        self.sum.fill(Vec4::ZERO);
+        self.sum_sq.fill(Vec4::ZERO);
+        Ok(())
+    }
+
+    fn reseed(&mut self, seed: u32) {
+        self.params.seed = seed;
+    }
 }

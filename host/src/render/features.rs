@@ -1,11 +1,11 @@
 //! Scene analysis: what a loaded scene with its render settings uses (`shared::features`), for
-//! `render --json` (`features`) and for choosing a specialised variant of the integrator. Only
-//! the generic variant exists so far, and every render reports it.
+//! `render --json` (`features`) and for choosing the specialised variant of the integrator that
+//! both renderers run (`RenderSettings::specialize`; off, the generic code).
 use crate::render::Compiled;
 use crate::settings::RenderSettings;
 use serde::Serialize;
 use shared::features::{
-    FEATURE_DIFFUSE, FEATURE_EMITTERS, FEATURE_ENVIRONMENT, FEATURE_INDIRECT, FEATURE_MANY_EMITTERS,
+    FEATURES_ALL, FEATURE_DIFFUSE, FEATURE_EMITTERS, FEATURE_ENVIRONMENT, FEATURE_INDIRECT, FEATURE_MANY_EMITTERS,
 };
 use shared::layout::MATERIAL_DIFFUSE;
 use shared::vecmath::{max_component, xyz};
@@ -30,8 +30,29 @@ pub struct Features {
     pub bounces: u32,
     /// Whether light can reach the camera after a bounce.
     pub indirect: bool,
-    /// The integrator variant that renders it.
+    /// The integrator variant that renders it: "generic", or "specialised" for `bits`.
     pub variant: &'static str,
+    /// The feature bits of that variant (`FEATURES_ALL` for the generic code).
+    pub variant_bits: u32,
+}
+
+/// Each bit's name, as `render --json` and the tests print them.
+pub const FEATURE_NAMES: [(u32, &str); 5] = [
+    (FEATURE_EMITTERS, "emitters"),
+    (FEATURE_MANY_EMITTERS, "many_emitters"),
+    (FEATURE_ENVIRONMENT, "environment"),
+    (FEATURE_DIFFUSE, "diffuse"),
+    (FEATURE_INDIRECT, "indirect"),
+];
+
+/// The feature bits of the variant that renders `c` with `s`: the scene's set, or every bit for
+/// the generic code.
+pub fn variant_bits(c: &Compiled, s: &RenderSettings) -> u32 {
+    if s.specialize {
+        analyse(c, s).bits
+    } else {
+        FEATURES_ALL
+    }
 }
 
 pub fn analyse(c: &Compiled, s: &RenderSettings) -> Features {
@@ -54,8 +75,10 @@ pub fn analyse(c: &Compiled, s: &RenderSettings) -> Features {
     let used: Vec<_> = scene.materials.iter().zip(&used).filter(|(_, &u)| u).map(|(m, _)| m).collect();
     let diffuse = used.iter().any(|m| m.kind == MATERIAL_DIFFUSE);
     let reflects = used.iter().any(|m| max_component(xyz(m.albedo)) > 0.0);
-    // (Every emissive triangle is in the light table: `emitters` counts them all.)
-    let indirect = (emitters > 0 || environment) && reflects && s.max_bounces > 0;
+    // (Every emissive triangle is in the light table: `emitters` counts them all.) A render
+    // without indirect bounces still follows the BSDF sample to an emitter (MIS), so the bounce
+    // limit does not enter.
+    let indirect = (emitters > 0 || environment) && reflects;
     let mut bits = 0;
     for (on, bit) in [
         (emitters > 0, FEATURE_EMITTERS),
@@ -78,7 +101,8 @@ pub fn analyse(c: &Compiled, s: &RenderSettings) -> Features {
         alpha_masks: false,
         bounces: s.max_bounces,
         indirect,
-        variant: "generic",
+        variant: if s.specialize { "specialised" } else { "generic" },
+        variant_bits: if s.specialize { bits } else { FEATURES_ALL },
     }
 }
 
@@ -104,15 +128,21 @@ mod tests {
         assert_eq!(f.emitters, 12);
         // Six faces of area 4, emission 1 (luminance 1).
         assert!((f.emitter_power - 24.0).abs() < 1e-4, "{}", f.emitter_power);
-        // Direct light only: nothing arrives after a bounce.
-        assert_eq!(analyse(&c, &settings(0, Vec3::ZERO)).bits & FEATURE_INDIRECT, 0);
+        // Black surfaces: nothing is reflected.
+        let c = crate::compile(furnace(0.0, 1.0).unwrap(), Default::default());
+        assert_eq!(analyse(&c, &settings(3, Vec3::ZERO)).bits & FEATURE_INDIRECT, 0);
         // An emitting quad under a grey sky.
         let c = crate::compile(emitter(Vec3::ONE, true).unwrap(), Default::default());
         let f = analyse(&c, &settings(4, Vec3::splat(0.2)));
         assert_eq!(f.environment, "constant");
         assert_ne!(f.bits & FEATURE_ENVIRONMENT, 0);
         assert_eq!(f.emitters, 2);
-        assert_eq!(f.variant, "generic");
+        assert_eq!(f.variant, "specialised");
+        assert_eq!(f.variant_bits, f.bits);
         assert_eq!(f.bits & !FEATURES_ALL, 0);
+        let generic = analyse(&c, &RenderSettings { specialize: false, ..settings(4, Vec3::ZERO) });
+        assert_eq!((generic.variant, generic.variant_bits), ("generic", FEATURES_ALL));
+        // Without the sky only the emitters light it.
+        assert_eq!(generic.bits & FEATURE_ENVIRONMENT, 0);
     }
 }

@@ -6,17 +6,20 @@
 use crate::render::{Compiled, Progress, Rendered};
 use crate::settings::{Dispatch, RenderSettings};
 use anyhow::{anyhow, bail, Context, Result};
+use shared::features::{spec_id, Variant};
 use shared::glam::Vec4;
 use shared::layout::{
-    binding, RayQuery, RayResult, RenderParams, TriBlock, CAST_GROUP, PERSISTENT_GROUP, RENDER_GROUP_SIDE,
+    binding, RayQuery, RayResult, RenderParams, TriBlock, CAST_GROUP, LIST_GROUP, PERSISTENT_GROUP, RENDER_GROUP_SIDE,
 };
-use std::sync::OnceLock;
+use std::collections::HashMap;
+use std::sync::Mutex;
 use wgpu::util::DeviceExt;
 
 static KERNEL_SPV: &[u8] = include_bytes!(env!("kernel.spv"));
 const RENDER_ENTRY: &str = "render_pass";
 const CAST_ENTRY: &str = "cast_rays";
 const PERSISTENT_ENTRY: &str = "render_persistent";
+const LIST_ENTRY: &str = "render_list";
 /// Workgroups of the persistent kernel: enough to fill a large GPU (132 SMs × 16 groups of 64
 /// on an H100 is about 2000), few enough that each takes many batches on smaller ones.
 const PERSISTENT_GROUPS: u32 = 2048;
@@ -35,17 +38,17 @@ const CPU_ADAPTER_SAMPLES_PER_PASS: u32 = 4;
 /// ...and, for the persistent kernel, one sample per pass and at most this many batches per
 /// workgroup. Real GPUs have no such limit.
 const CPU_ADAPTER_PERSISTENT_ROUNDS: u32 = 4;
+/// Adaptive sampling on a real GPU: at most this many samples per pixel and pass.
+const GPU_ADAPTIVE_PASS_SAMPLES: u32 = 16;
 
 pub struct Gpu {
     device: wgpu::Device,
     queue: wgpu::Queue,
     module: wgpu::ShaderModule,
     layout: wgpu::PipelineLayout,
-    // Each entry point is compiled when first used: a driver compiles the whole integrator per
-    // pipeline, and a render needs one of the three.
-    render_pipeline: OnceLock<wgpu::ComputePipeline>,
-    persistent_pipeline: OnceLock<wgpu::ComputePipeline>,
-    cast_pipeline: OnceLock<wgpu::ComputePipeline>,
+    // Each entry point is compiled when first used, once per variant (specialisation
+    // constants): a driver compiles the whole integrator per pipeline, and a render needs one.
+    pipelines: Mutex<HashMap<(&'static str, Variant), wgpu::ComputePipeline>>,
     bind_layout: wgpu::BindGroupLayout,
     pub adapter: wgpu::AdapterInfo,
 }
@@ -168,49 +171,56 @@ impl Gpu {
         if let Some(e) = pollster::block_on(scope.pop()) {
             bail!("adapter {:?} rejected the kernel: {e}", info.name);
         }
-        Ok(Self {
-            device,
-            queue,
-            module,
-            layout,
-            render_pipeline: OnceLock::new(),
-            persistent_pipeline: OnceLock::new(),
-            cast_pipeline: OnceLock::new(),
-            bind_layout,
-            adapter: info,
-        })
+        Ok(Self { device, queue, module, layout, pipelines: Mutex::new(HashMap::new()), bind_layout, adapter: info })
     }
 
-    /// Compiles the render pipeline for `dispatch` now, so that it is not timed as rendering.
-    pub fn prepare(&self, dispatch: Dispatch) -> Result<&wgpu::ComputePipeline> {
-        match dispatch {
-            Dispatch::Plain => self.pipeline(&self.render_pipeline, RENDER_ENTRY),
-            Dispatch::Persistent => self.pipeline(&self.persistent_pipeline, PERSISTENT_ENTRY),
-        }
+    /// Compiles the render pipeline that `render(c, s)` will use now, so that it is not timed as
+    /// rendering.
+    pub fn prepare(&self, c: &Compiled, s: &RenderSettings) -> Result<()> {
+        let entry = if s.adaptive.is_some() {
+            LIST_ENTRY
+        } else {
+            match s.dispatch {
+                Dispatch::Plain => RENDER_ENTRY,
+                Dispatch::Persistent => PERSISTENT_ENTRY,
+            }
+        };
+        self.pipeline(entry, variant(c, s))?;
+        Ok(())
     }
 
-    /// The pipeline of kernel entry point `entry`, compiled on first use.
-    fn pipeline<'a>(
-        &self,
-        cell: &'a OnceLock<wgpu::ComputePipeline>,
-        entry: &str,
-    ) -> Result<&'a wgpu::ComputePipeline> {
-        if let Some(p) = cell.get() {
-            return Ok(p);
+    /// The pipeline of kernel entry point `entry` specialised as `v`, compiled on first use.
+    fn pipeline(&self, entry: &'static str, v: Variant) -> Result<wgpu::ComputePipeline> {
+        if let Some(p) = self.pipelines.lock().unwrap().get(&(entry, v)) {
+            return Ok(p.clone());
         }
+        let ids = [spec_id::FEATURES, spec_id::MAX_BOUNCES, spec_id::RR_START].map(|id| id.to_string());
+        let values = [v.features, v.max_bounces, v.rr_start];
+        // Only what differs from the kernel's defaults: the generic pipeline sets nothing.
+        let constants: Vec<(&str, f64)> = ids
+            .iter()
+            .zip(values.iter().zip([
+                Variant::GENERIC_SPEC.features,
+                Variant::GENERIC_SPEC.max_bounces,
+                Variant::GENERIC_SPEC.rr_start,
+            ]))
+            .filter(|(_, (value, default))| **value != *default)
+            .map(|(id, (value, _))| (id.as_str(), *value as f64))
+            .collect();
         let scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         let pipeline = self.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some(entry),
             layout: Some(&self.layout),
             module: &self.module,
             entry_point: Some(entry),
-            compilation_options: Default::default(),
+            compilation_options: wgpu::PipelineCompilationOptions { constants: &constants, ..Default::default() },
             cache: None,
         });
         if let Some(e) = pollster::block_on(scope.pop()) {
-            bail!("adapter {:?} rejected kernel entry point {entry}: {e}", self.adapter.name);
+            bail!("adapter {:?} rejected kernel entry point {entry} ({v:?}): {e}", self.adapter.name);
         }
-        Ok(cell.get_or_init(|| pipeline))
+        self.pipelines.lock().unwrap().insert((entry, v), pipeline.clone());
+        Ok(pipeline)
     }
 
     /// Whether the adapter runs on the CPU (lavapipe, WARP): its limits and speeds differ.
@@ -232,7 +242,7 @@ impl Gpu {
         self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
             size: size.max(16),
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         })
     }
@@ -284,6 +294,7 @@ impl Gpu {
         results: &wgpu::Buffer,
         queue: &wgpu::Buffer,
         accum_sq: &wgpu::Buffer,
+        live: &wgpu::Buffer,
     ) -> wgpu::BindGroup {
         let buffers = [
             (binding::PARAMS, &s.params),
@@ -300,6 +311,7 @@ impl Gpu {
             (binding::QUEUE, queue),
             (binding::ACCUM_SQ, accum_sq),
             (binding::BLOCKS, &s.blocks),
+            (binding::LIVE, live),
         ];
         debug_assert_eq!(buffers.len() as u32, binding::COUNT);
         let entries: Vec<wgpu::BindGroupEntry> = buffers
@@ -344,7 +356,34 @@ impl Gpu {
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let group = self.bind(&scene, &accum, &primary, &rays, &results, &work, &accum_sq);
+        let live = self.output("live pixels", if s.adaptive.is_some() { pixels * 16 } else { 0 });
+        let group = self.bind(&scene, &accum, &primary, &rays, &results, &work, &accum_sq, &live);
+        if let Some(a) = s.adaptive {
+            let mut params = c.params(s, 0, 0)?;
+            params.persistent_rounds = 0;
+            let mut dev = GpuPasses {
+                gpu: self,
+                pipeline: self.pipeline(LIST_ENTRY, variant(c, s))?,
+                group: &group,
+                params,
+                params_buffer: &scene.params,
+                live: &live,
+                accum: &accum,
+                accum_sq: &accum_sq,
+                bytes: accum_bytes,
+            };
+            let outcome = super::adaptive::render(&mut dev, s, a, progress)?;
+            return Ok(Rendered {
+                width: s.width,
+                height: s.height,
+                spp: s.spp,
+                sum: self.read_back(&accum, accum_bytes)?,
+                sum_sq: self.read_back(&accum_sq, accum_bytes)?,
+                primary: self.read_back(&primary, pixels * 4)?,
+                traversal: s.traversal,
+                counts: Some(outcome.counts),
+            });
+        }
         // Work per invocation and dispatch, bounded on CPU adapters (see `CPU_ADAPTER_*`).
         let cpu_adapter = self.is_cpu();
         let batches = pixels.div_ceil(PERSISTENT_GROUP as u64) as u32;
@@ -356,7 +395,11 @@ impl Gpu {
             (Dispatch::Plain, true) => (CPU_ADAPTER_SAMPLES_PER_PASS, 0, 0),
             (Dispatch::Plain, false) => (s.spp, 0, 0),
         };
-        let pipeline = self.prepare(s.dispatch)?;
+        let entry = match s.dispatch {
+            Dispatch::Plain => RENDER_ENTRY,
+            Dispatch::Persistent => PERSISTENT_ENTRY,
+        };
+        let pipeline = &self.pipeline(entry, variant(c, s))?;
         let per_pass = ((PATHS_PER_PASS / pixels.max(1)) as u32).clamp(1, s.spp.min(max_per_pass));
         let total = pixels * s.spp as u64;
         let clock = std::time::Instant::now();
@@ -387,7 +430,16 @@ impl Gpu {
         let sum: Vec<Vec4> = self.read_back(&accum, accum_bytes)?;
         let sum_sq: Vec<Vec4> = self.read_back(&accum_sq, accum_bytes)?;
         let primary: Vec<u32> = self.read_back(&primary, pixels * 4)?;
-        Ok(Rendered { width: s.width, height: s.height, spp: start, sum, sum_sq, primary, traversal: s.traversal })
+        Ok(Rendered {
+            width: s.width,
+            height: s.height,
+            spp: start,
+            sum,
+            sum_sq,
+            primary,
+            traversal: s.traversal,
+            counts: None,
+        })
     }
 
     /// Casts a batch of rays through the scene's tree (no shading); one result per ray.
@@ -409,18 +461,19 @@ impl Gpu {
         let result_bytes = std::mem::size_of_val(rays) as u64 / std::mem::size_of::<RayQuery>() as u64
             * std::mem::size_of::<RayResult>() as u64;
         let results = self.output("results", result_bytes);
-        let (accum, primary, work, accum_sq) = (
+        let (accum, primary, work, accum_sq, live) = (
             self.output("accum (unused)", 0),
             self.output("primary (unused)", 0),
             self.output("work queue (unused)", 0),
             self.output("accum squares (unused)", 0),
+            self.output("live pixels (unused)", 0),
         );
-        let group = self.bind(&scene, &accum, &primary, &ray_buffer, &results, &work, &accum_sq);
+        let group = self.bind(&scene, &accum, &primary, &ray_buffer, &results, &work, &accum_sq, &live);
         let groups = rays.len().div_ceil(CAST_GROUP as usize);
         if groups > MAX_GROUPS_X as usize {
             bail!("{} rays in one batch: at most {} are supported", rays.len(), MAX_GROUPS_X * CAST_GROUP);
         }
-        let pipeline = self.pipeline(&self.cast_pipeline, CAST_ENTRY)?;
+        let pipeline = &self.pipeline(CAST_ENTRY, Variant::GENERIC_SPEC)?;
         // Finish the uploads (and compile) first so the timing covers the dispatch alone.
         self.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| anyhow!("GPU upload failed: {e}"))?;
         let t = std::time::Instant::now();
@@ -455,9 +508,82 @@ impl Gpu {
     }
 }
 
+/// Adaptive sampling's passes on the GPU: each pass uploads the compacted list of pixels that
+/// take samples and dispatches `render_list` over it.
+struct GpuPasses<'a> {
+    gpu: &'a Gpu,
+    pipeline: wgpu::ComputePipeline,
+    group: &'a wgpu::BindGroup,
+    params: RenderParams,
+    params_buffer: &'a wgpu::Buffer,
+    live: &'a wgpu::Buffer,
+    accum: &'a wgpu::Buffer,
+    accum_sq: &'a wgpu::Buffer,
+    bytes: u64,
+}
+
+impl super::adaptive::Passes for GpuPasses<'_> {
+    fn pass(&mut self, ranges: &[[u32; 2]]) -> Result<()> {
+        let list: Vec<[u32; 4]> = ranges
+            .iter()
+            .enumerate()
+            .filter(|(_, r)| r[1] > 0)
+            .map(|(pixel, &[start, count])| [pixel as u32, start, count, 0])
+            .collect();
+        if list.is_empty() {
+            return Ok(());
+        }
+        let g = self.gpu;
+        g.queue.write_buffer(self.live, 0, bytemuck::cast_slice(&list));
+        self.params.live_count = list.len() as u32;
+        g.queue.write_buffer(self.params_buffer, 0, bytemuck::bytes_of(&self.params));
+        let groups = (list.len() as u32).div_ceil(LIST_GROUP);
+        let x = groups.min(MAX_GROUPS_X);
+        g.dispatch(&self.pipeline, self.group, (x, groups.div_ceil(x)))
+    }
+
+    fn max_per_pass(&self) -> u32 {
+        if self.gpu.is_cpu() {
+            CPU_ADAPTER_SAMPLES_PER_PASS
+        } else {
+            GPU_ADAPTIVE_PASS_SAMPLES
+        }
+    }
+
+    fn sums(&mut self) -> Result<(Vec<Vec4>, Vec<Vec4>)> {
+        Ok((self.gpu.read_back(self.accum, self.bytes)?, self.gpu.read_back(self.accum_sq, self.bytes)?))
+    }
+
+    fn clear(&mut self) -> Result<()> {
+        let g = self.gpu;
+        let mut encoder = g.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("clear") });
+        encoder.clear_buffer(self.accum, 0, None);
+        encoder.clear_buffer(self.accum_sq, 0, None);
+        g.queue.submit(Some(encoder.finish()));
+        g.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| anyhow!("GPU clear failed: {e}"))?;
+        Ok(())
+    }
+
+    fn reseed(&mut self, seed: u32) {
+        self.params.seed = seed;
+    }
+}
+
+/// The specialisation constants of the pipeline that renders `c` with `s`: the scene's feature
+/// set with the bounce limit and roulette start as constants, or the kernel's defaults (the
+/// generic code) when specialisation is off.
+pub fn variant(c: &Compiled, s: &RenderSettings) -> Variant {
+    if s.specialize {
+        Variant { features: super::features::variant_bits(c, s), max_bounces: s.max_bounces, rr_start: s.rr_start }
+    } else {
+        Variant::GENERIC_SPEC
+    }
+}
+
 #[cfg(test)]
 mod tests {
-    use shared::layout::{binding, CAST_GROUP, PERSISTENT_GROUP, RENDER_GROUP_SIDE};
+    use shared::features::{spec_id, Variant};
+    use shared::layout::{binding, CAST_GROUP, LIST_GROUP, PERSISTENT_GROUP, RENDER_GROUP_SIDE};
 
     /// The kernel's source, whose `#[spirv(...)]` attributes take literals only.
     const KERNEL: &str = include_str!("../../../kernel/src/lib.rs");
@@ -478,6 +604,7 @@ mod tests {
             "queue" => binding::QUEUE,
             "accum_sq" => binding::ACCUM_SQ,
             "blocks" => binding::BLOCKS,
+            "live" => binding::LIVE,
             other => panic!("kernel parameter {other:?} is not in shared::layout::binding"),
         }
     }
@@ -494,7 +621,7 @@ mod tests {
             assert!(number < binding::COUNT);
             seen += 1;
         }
-        assert!(seen >= 3 * 10, "expected the three entry points' bindings, found {seen}");
+        assert!(seen >= 4 * 10, "expected the four entry points' bindings, found {seen}");
         // Workgroup sizes: each entry point's `threads(...)` and the layout's constants.
         let threads = |entry: &str| {
             let at = KERNEL.find(&format!("pub fn {entry}(")).unwrap();
@@ -507,5 +634,30 @@ mod tests {
         assert_eq!(threads("render_pass"), [RENDER_GROUP_SIDE, RENDER_GROUP_SIDE, 1]);
         assert_eq!(threads("render_persistent"), [PERSISTENT_GROUP, 1, 1]);
         assert_eq!(threads("cast_rays"), [CAST_GROUP, 1, 1]);
+        assert_eq!(threads("render_list"), [LIST_GROUP, 1, 1]);
+    }
+
+    #[test]
+    fn kernel_spec_constants_match_the_layout() {
+        let expected = [
+            ("features", spec_id::FEATURES, Variant::GENERIC_SPEC.features),
+            ("max_bounces", spec_id::MAX_BOUNCES, Variant::GENERIC_SPEC.max_bounces),
+            ("rr_start", spec_id::RR_START, Variant::GENERIC_SPEC.rr_start),
+        ];
+        let mut seen = 0;
+        for line in KERNEL.lines() {
+            let Some(at) = line.find("spec_constant(id = ") else { continue };
+            let rest = &line[at + "spec_constant(id = ".len()..];
+            let id: u32 = rest[..rest.find(',').unwrap()].parse().unwrap();
+            let default = &rest[rest.find("default = ").unwrap() + "default = ".len()..];
+            let default: u32 = default[..default.find(')').unwrap()].parse().unwrap();
+            let name = rest[rest.find("] ").unwrap() + 2..rest.find(':').unwrap()].trim();
+            let &(_, want_id, want_default) =
+                expected.iter().find(|e| e.0 == name).unwrap_or_else(|| panic!("unknown spec constant {name}"));
+            assert_eq!((id, default), (want_id, want_default), "kernel spec constant {name}");
+            seen += 1;
+        }
+        // Three constants on each of the three render entry points.
+        assert_eq!(seen, 9);
     }
 }

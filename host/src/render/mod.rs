@@ -2,6 +2,7 @@
 //! the accumulated result), loading a scene into that form (`load`) or from a compiled `.kdc`
 //! file (`kdc`), the CPU reference (`cpu`), the wgpu runner of the rust-gpu kernel (`gpu`), the
 //! CPU ≡ GPU check (`verify`) and the ray-casting benchmark (`raybench`).
+pub mod adaptive;
 pub mod cpu;
 pub mod features;
 pub mod gpu;
@@ -97,7 +98,7 @@ impl Compiled {
             },
             persistent_rounds: u32::MAX,
             sampler: s.sampler.tag(),
-            _pad1: 0,
+            live_count: 0,
             _pad2: 0,
         })
     }
@@ -156,23 +157,48 @@ pub struct Rendered {
     pub primary: Vec<u32>,
     /// The traversal that rendered it (`Auto` resolved for the device).
     pub traversal: Traversal,
+    /// With adaptive sampling, the samples each pixel's sums hold (`spp` is then the most);
+    /// without, every pixel holds `spp`.
+    pub counts: Option<Vec<u32>>,
 }
 
 impl Rendered {
+    /// The samples pixel `i` holds.
+    pub fn count(&self, i: usize) -> u32 {
+        self.counts.as_ref().map_or(self.spp, |c| c[i])
+    }
+
     /// Mean radiance per pixel, linear RGB.
     pub fn mean(&self) -> Vec<[f32; 3]> {
-        let k = 1.0 / self.spp as f32;
-        self.sum.iter().map(|s| [s.x * k, s.y * k, s.z * k]).collect()
+        (0..self.sum.len())
+            .map(|i| {
+                let (s, k) = (self.sum[i], 1.0 / self.count(i) as f32);
+                [s.x * k, s.y * k, s.z * k]
+            })
+            .collect()
+    }
+
+    /// The fewest, mean and most samples per pixel.
+    pub fn spp_range(&self) -> (u32, f64, u32) {
+        match &self.counts {
+            Some(c) => (
+                c.iter().copied().min().unwrap_or(0),
+                c.iter().map(|&n| n as f64).sum::<f64>() / c.len().max(1) as f64,
+                c.iter().copied().max().unwrap_or(0),
+            ),
+            None => (self.spp, self.spp as f64, self.spp),
+        }
     }
 
     /// Per-sample variance of each pixel's radiance (unbiased, n − 1 denominator; 0 below two
     /// samples): with `mean` and `spp`, what a per-pixel test of the image needs.
     pub fn variance(&self) -> Vec<[f32; 3]> {
-        let n = self.spp as f64;
         self.sum
             .iter()
             .zip(&self.sum_sq)
-            .map(|(s, q)| {
+            .enumerate()
+            .map(|(i, (s, q))| {
+                let n = self.count(i) as f64;
                 let v = |a: f32, b: f32| {
                     if n < 2.0 {
                         0.0
@@ -192,7 +218,7 @@ impl Rendered {
         Ok(PixelStats {
             mean: LinearImage::new(self.width, self.height, self.mean())?,
             variance: LinearImage::new(self.width, self.height, self.variance())?,
-            count: vec![self.spp as u64; self.sum.len()],
+            count: (0..self.sum.len()).map(|i| self.count(i) as u64).collect(),
         })
     }
 

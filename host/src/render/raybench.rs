@@ -14,6 +14,7 @@ use anyhow::{bail, Result};
 use rayon::prelude::*;
 use serde::Serialize;
 use shared::camera::primary_direction;
+use shared::features::Variant;
 use shared::glam::Vec3;
 use shared::layout::{RayQuery, RayResult, NO_HIT, RAY_ANY_HIT, RAY_SHORT_STACK};
 use shared::material::sample as sample_bsdf;
@@ -67,8 +68,14 @@ pub fn make_rays(c: &Compiled, s: &RenderSettings, kind: RayKind, traversal: Tra
             let n = unit_normal(tri);
             let n = if dot(n, d) < 0.0 { n } else { -n };
             let (u1, u2) = Sampler::new(SAMPLER_INDEPENDENT, i as u32, 0, 0x5eed).next_2d();
-            let wi =
-                sample_bsdf(&c.scene.materials[c.scene.info[hit.triangle as usize].material as usize], n, u1, u2).wi;
+            let wi = sample_bsdf(
+                Variant::GENERIC_SPEC,
+                &c.scene.materials[c.scene.info[hit.triangle as usize].material as usize],
+                n,
+                u1,
+                u2,
+            )
+            .wi;
             let o = offset_ray_origin(surface.p, surface.error, n);
             Some(match kind {
                 RayKind::Ao => query(o, wi, AO_LENGTH * diagonal, flags | RAY_ANY_HIT),

@@ -114,6 +114,8 @@ impl SceneSettings {
             dispatch: Dispatch::default(),
             aov: Aov::default(),
             time_limit_s: self.time_limit_s,
+            specialize: true,
+            adaptive: None,
         };
         s.check()?;
         camera.basis(aspect)?;

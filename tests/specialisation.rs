@@ -1,0 +1,181 @@
+//! Specialised variants give the generic code's image bit for bit. Each scene below leaves out a
+//! different part of the feature set (`shared::features`), checked first, so every bit is off in
+//! some case: emitters, many emitters, the environment, indirect light; and the bounce limit and
+//! roulette start are constants in the GPU's specialised pipelines. Per case, the CPU's
+//! monomorphised variant equals its generic code, and on lavapipe the specialised pipeline and the
+//! generic one both equal the CPU (sums, squared sums and primary hits).
+#[path = "common/paths.rs"]
+mod paths;
+use kdtrace::{
+    compile,
+    kdbuild::BuildSettings,
+    load,
+    render::{cpu, features, gpu, Compiled, Rendered},
+    scene::{
+        diffuse,
+        procedural::{box_triangles, quad},
+        Scene,
+    },
+    settings::{camera::Camera, RenderSettings},
+};
+use paths::mesh;
+use shared::features::{
+    FEATURES_ALL, FEATURE_DIFFUSE, FEATURE_EMITTERS, FEATURE_ENVIRONMENT, FEATURE_INDIRECT, FEATURE_MANY_EMITTERS,
+};
+use shared::glam::{DVec3, Vec3, Vec4};
+use shared::layout::Material;
+
+fn no_progress(_: u64, _: u64) {}
+
+fn material(albedo: f32, emission: f32) -> Material {
+    diffuse(Vec3::splat(albedo), Vec3::splat(emission))
+}
+
+/// A floor and a block under an optional lamp of one triangle (facing down) and optional sky.
+fn lamp_and_block(lamp: bool) -> Compiled {
+    let mut tris: Vec<_> = quad(
+        Vec3::new(-2.0, 0.0, 2.0),
+        Vec3::new(2.0, 0.0, 2.0),
+        Vec3::new(2.0, 0.0, -2.0),
+        Vec3::new(-2.0, 0.0, -2.0),
+    )
+    .to_vec();
+    tris.extend(box_triangles(Vec3::new(-0.5, 0.0, -0.5), Vec3::new(0.5, 1.0, 0.5), false));
+    let mut material_of = vec![0; tris.len()];
+    if lamp {
+        tris.extend(
+            quad(
+                Vec3::new(-0.3, 2.0, -0.3),
+                Vec3::new(0.3, 2.0, -0.3),
+                Vec3::new(0.3, 2.0, 0.3),
+                Vec3::new(-0.3, 2.0, 0.3),
+            )[..1]
+                .iter()
+                .copied(),
+        );
+        material_of.push(1);
+    }
+    let scene = Scene::new(
+        tris,
+        material_of,
+        vec![material(0.7, 0.0), material(0.5, 20.0)],
+        vec!["floor".into(), "lamp".into()],
+    )
+    .unwrap();
+    compile(scene, BuildSettings::default())
+}
+
+fn cornell(albedo_scale: f32) -> Compiled {
+    let mut l = load(&mesh("CornellBox-Original/CornellBox-Original.obj"), BuildSettings::default()).unwrap();
+    for m in &mut l.compiled.scene.materials {
+        m.albedo *= Vec4::new(albedo_scale, albedo_scale, albedo_scale, 1.0);
+    }
+    l.compiled
+}
+
+fn settings(eye: DVec3, target: DVec3, sky: f32, bounces: u32) -> RenderSettings {
+    let camera = Camera { eye, target, up: DVec3::Y, fov_deg: 45.0 };
+    RenderSettings {
+        width: 20,
+        height: 16,
+        spp: 4,
+        max_bounces: bounces,
+        rr_start: 2,
+        seed: 7,
+        environment: Vec3::splat(sky),
+        ..RenderSettings::with_camera(camera)
+    }
+}
+
+fn same(a: &Rendered, b: &Rendered) -> bool {
+    let bits = |v: &[Vec4]| v.iter().flat_map(|p| p.to_array().map(f32::to_bits)).collect::<Vec<_>>();
+    bits(&a.sum) == bits(&b.sum) && bits(&a.sum_sq) == bits(&b.sum_sq) && a.primary == b.primary
+}
+
+#[test]
+fn every_variant_renders_the_generic_image() {
+    let outside = (DVec3::new(0.0, 2.5, 5.0), DVec3::new(0.0, 0.5, 0.0));
+    let box_view = (DVec3::new(0.0, 1.0, 3.4), DVec3::new(0.0, 1.0, 0.0));
+    let cases: Vec<(&str, Compiled, RenderSettings, u32)> = vec![
+        (
+            "Cornell box",
+            cornell(1.0),
+            settings(box_view.0, box_view.1, 0.0, 4),
+            FEATURE_EMITTERS | FEATURE_MANY_EMITTERS | FEATURE_DIFFUSE | FEATURE_INDIRECT,
+        ),
+        (
+            "Cornell box, direct light only",
+            cornell(1.0),
+            settings(box_view.0, box_view.1, 0.0, 0),
+            FEATURE_EMITTERS | FEATURE_MANY_EMITTERS | FEATURE_DIFFUSE | FEATURE_INDIRECT,
+        ),
+        (
+            "black Cornell box",
+            cornell(0.0),
+            settings(box_view.0, box_view.1, 0.0, 4),
+            FEATURE_EMITTERS | FEATURE_MANY_EMITTERS | FEATURE_DIFFUSE,
+        ),
+        (
+            "one lamp",
+            lamp_and_block(true),
+            settings(outside.0, outside.1, 0.0, 3),
+            FEATURE_EMITTERS | FEATURE_DIFFUSE | FEATURE_INDIRECT,
+        ),
+        (
+            "one lamp under a sky",
+            lamp_and_block(true),
+            settings(outside.0, outside.1, 0.4, 3),
+            FEATURE_EMITTERS | FEATURE_ENVIRONMENT | FEATURE_DIFFUSE | FEATURE_INDIRECT,
+        ),
+        (
+            "sky only",
+            lamp_and_block(false),
+            settings(outside.0, outside.1, 0.8, 3),
+            FEATURE_ENVIRONMENT | FEATURE_DIFFUSE | FEATURE_INDIRECT,
+        ),
+        ("no light at all", lamp_and_block(false), settings(outside.0, outside.1, 0.0, 3), FEATURE_DIFFUSE),
+    ];
+    // Every bit is left out somewhere.
+    let covered = cases.iter().fold(0, |acc, c| acc | (FEATURES_ALL & !c.3));
+    assert_eq!(covered, FEATURES_ALL & !FEATURE_DIFFUSE, "some feature is never left out");
+    let g = gpu::Gpu::lavapipe().unwrap();
+    for (name, c, s, bits) in &cases {
+        assert_eq!(features::analyse(c, s).bits, *bits, "{name}: feature set");
+        let generic = RenderSettings { specialize: false, ..*s };
+        let cpu_special = cpu::render(c, s, &no_progress).unwrap();
+        let cpu_generic = cpu::render(c, &generic, &no_progress).unwrap();
+        assert!(cpu_special.sum.iter().all(|p| p.is_finite()), "{name}");
+        assert!(same(&cpu_special, &cpu_generic), "{name}: the CPU's variant differs from its generic code");
+        let gpu_special = g.render(c, s, &no_progress).unwrap();
+        assert!(same(&cpu_special, &gpu_special), "{name}: lavapipe's specialised pipeline differs from the CPU");
+        let gpu_generic = g.render(c, &generic, &no_progress).unwrap();
+        assert!(same(&cpu_generic, &gpu_generic), "{name}: lavapipe's generic pipeline differs from the CPU");
+    }
+    // The scenes with light are not black, and the one without is.
+    let lit = |i: usize| cpu::render(&cases[i].1, &cases[i].2, &no_progress).unwrap().sum.iter().any(|p| p.x > 0.0);
+    assert!(lit(0) && lit(2) && lit(3) && lit(5));
+    assert!(!lit(6));
+}
+
+/// A variant that leaves out a feature the scene has renders a different image: the cases above
+/// would catch a variant that ignored its bits.
+#[test]
+fn leaving_out_a_used_feature_changes_the_image() {
+    let c = lamp_and_block(true);
+    let s = settings(DVec3::new(0.0, 2.5, 5.0), DVec3::new(0.0, 0.5, 0.0), 0.4, 3);
+    let full = cpu::render(&c, &s, &no_progress).unwrap();
+    let bits = features::analyse(&c, &s).bits;
+    for bit in [FEATURE_EMITTERS, FEATURE_ENVIRONMENT, FEATURE_INDIRECT] {
+        let params = c.params(&s, 0, s.spp).unwrap();
+        let view = c.view(&params);
+        let f = cpu::variant(bits & !bit);
+        let (mut sum, mut sum_sq, mut primary) = (vec![Vec4::ZERO; 320], vec![Vec4::ZERO; 320], vec![0; 320]);
+        for y in 0..s.height {
+            for x in 0..s.width {
+                let i = (y * s.width + x) as usize;
+                f(&view, &params, x, y, 0, s.spp, &mut sum[i], &mut sum_sq[i], &mut primary[i]);
+            }
+        }
+        assert_ne!(sum, full.sum, "leaving out feature bit {bit} changed nothing");
+    }
+}

@@ -41,7 +41,23 @@ SCENES = {
         # argparse from reading -0.01 as an option).
         "camera": ["--eye=-0.01,0.795,3.817", "--target=-0.01,0.795,0.493", "--up=0,1,0", "--fov=39.3076"],
     },
+    # CornellBox-Original (Morgan McGuire's archive) from a camera of our own choosing, off the
+    # axis the scene's authors framed.
+    "CornellBox-Original": {
+        "obj": os.path.join(ROOT, "tests", "data", "meshes", "CornellBox-Original", "CornellBox-Original.obj"),
+        "camera": ["--eye=0.35,1.1,3.5", "--target=-0.1,0.9,0", "--up=0,1,0", "--fov=40"],
+    },
+    # A room lit by a lamp hidden behind a partition (scenes/uneven-noise.md), its own camera.
+    "uneven-noise": {
+        "obj": os.path.join(ROOT, "scenes", "uneven-noise.obj"),
+        "camera": ["--eye=0.4,1.0,3.9", "--target=2.6,1.0,0.5", "--up=0,1,0", "--fov=70"],
+    },
     # Composed by bench/peers/make_scenes.py into OUT/scenes at the start of a run.
+    "buddha-box": {
+        "generated": "buddha-box.obj",
+        "camera": ["--eye=0.42,0.33,0.75", "--target=0.25,0.2,-0.3", "--up=0,1,0", "--fov=40"],
+        "max_spp": 256,
+    },
     "bunny-box": {
         "generated": "bunny-box.obj",
         "camera": ["--eye=0.278,0.273,0.8", "--target=0.278,0.273,0", "--up=0,1,0", "--fov=39.3076"],
@@ -57,6 +73,11 @@ SCENES = {
 
 LADDERS = {
     "kdtrace-cpu": [4, 16, 64, 256, 1024],
+    # The generic integrator (`--specialize off`): what specialisation alone buys.
+    "kdtrace-cpu-generic": [4, 16, 64, 256, 1024],
+    # Adaptive sampling: the rungs are thresholds (`--adaptive`), each pixel up to 8192 spp.
+    "kdtrace-cpu-adaptive": [0.2, 0.1, 0.05, 0.03, 0.02],
+    "kdtrace-cpu-asyougo": [0.2, 0.1, 0.05, 0.03, 0.02],
     # The same CPU path with independent uniforms instead of Sobol points (`--sampler`).
     "kdtrace-cpu-independent": [4, 16, 64, 256, 1024],
     "kdtrace-gpu": [4, 16, 64],
@@ -65,6 +86,10 @@ LADDERS = {
     # Mitsuba with its low-discrepancy sampler (padded (0,2)-sequences) instead of its default.
     "mitsuba-ldsampler": [4, 16, 64, 256, 1024],
 }
+
+
+# The most samples one pixel may take under adaptive sampling (`--spp` with `--adaptive`).
+ADAPTIVE_MAX_SPP = 8192
 
 
 def last_json(stdout):
@@ -90,8 +115,16 @@ def render(renderer, scene, spp, seed, out, a):
     obj = SCENES[scene]["obj"]
     if renderer.startswith("kdtrace"):
         dev = renderer.split("-")[1]
-        sampler = ["--sampler", "independent"] if renderer.endswith("-independent") else []
-        j, wall = run([KDTRACE, "render", obj, "--out", out, "--device", dev, "--json"] + sampler + common)
+        extra = {
+            "-independent": ["--sampler", "independent"],
+            "-generic": ["--specialize", "off"],
+            "-adaptive": ["--adaptive", str(spp), "--adaptive-mode", "pilot"],
+            "-asyougo": ["--adaptive", str(spp), "--adaptive-mode", "as-you-go"],
+        }
+        extra = next((v for k, v in extra.items() if renderer.endswith(k)), [])
+        if "--adaptive" in extra:
+            common[1] = str(ADAPTIVE_MAX_SPP)
+        j, wall = run([KDTRACE, "render", obj, "--out", out, "--device", dev, "--json"] + extra + common)
         return j["build_s"] + j.get("prepare_s", 0.0) + j["render_s"], wall, j
     base, _, variant = renderer.partition("-")
     script = os.path.join(ROOT, "bench", "peers", f"render_{base}.py")
@@ -167,7 +200,7 @@ def main():
                 out = os.path.join(img, f"{scene}-{renderer}-{spp}.exr")
                 t, wall, j = render(renderer, scene, spp, 0, out, a)
                 e = compare(ref, out)
-                row = {"scene": scene, "renderer": renderer, "spp": spp, "time_s": t, "wall_s": wall,
+                row = {"scene": scene, "renderer": renderer, "spp": spp, "spp_mean": j.get("spp_mean", spp), "time_s": t, "wall_s": wall,
                        "rmse": e["rmse"], "relmse": e["relmse"], "mae": e["mae"], "flip": e["flip"], "mean_ratio": e["mean_ratio"],
                        "nan": e["test_nonfinite"]["nan"], "inf": e["test_nonfinite"]["inf"]}
                 rows.append(row)
@@ -184,7 +217,17 @@ def main():
             ts, es = [r["time_s"] for r in rs], [r["relmse"] for r in rs]
             slope, _ = fit_slope(ts, es)
             t1e3, how = time_to(1e-3, ts, es)
-            summary["fits"].append({"scene": scene, "renderer": renderer, "slope": slope, "time_to_relmse_1e-3_s": t1e3, "how": how})
+            w1e3, whow = time_to(1e-3, [r["wall_s"] for r in rs], es)
+            # Seconds per sample per pixel at the largest fixed-spp rung both kdtrace-cpu and
+            # Mitsuba rendered (adaptive rungs are thresholds: no per-sample figure).
+            per_sample = None
+            if not renderer.endswith(("-adaptive", "-asyougo")):
+                common = [r for r in rs if r["spp"] in (64, 256)]
+                if common:
+                    r = max(common, key=lambda r: r["spp"])
+                    per_sample = {"spp": r["spp"], "time_s": r["time_s"], "wall_s": r["wall_s"]}
+            summary["fits"].append({"scene": scene, "renderer": renderer, "slope": slope, "time_to_relmse_1e-3_s": t1e3, "how": how,
+                                    "wall_to_relmse_1e-3_s": w1e3, "wall_how": whow, "per_sample": per_sample})
     summary["total_s"] = time.perf_counter() - t_all
     with open(os.path.join(a.out, "summary.json"), "w") as f:
         json.dump(summary, f, indent=1)
@@ -197,6 +240,13 @@ def main():
     print("|---|---|---|---|")
     for fit in summary["fits"]:
         print(f"| {fit['scene']} | {fit['renderer']} | {fit['slope']:.3f} | {fit['time_to_relmse_1e-3_s']:.1f} ({fit['how']}) |")
+    print("\n| scene | renderer | time to relMSE 1e-3 vs Mitsuba (after parsing) | whole process |")
+    print("|---|---|---|---|")
+    for fit in summary["fits"]:
+        m = next((f for f in summary["fits"] if f["scene"] == fit["scene"] and f["renderer"] == "mitsuba"), None)
+        if m and fit["renderer"].startswith("kdtrace"):
+            print(f"| {fit['scene']} | {fit['renderer']} | {fit['time_to_relmse_1e-3_s'] / m['time_to_relmse_1e-3_s']:.2f}x "
+                  f"| {fit['wall_to_relmse_1e-3_s'] / m['wall_to_relmse_1e-3_s']:.2f}x |")
     print(f"\ntotal {summary['total_s']:.0f} s")
 
     import matplotlib

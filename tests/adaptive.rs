@@ -103,3 +103,18 @@ fn unbiased_mode_has_the_fixed_images_mean() {
     let t = two_image_test(&stats(&brighter, None), &pilot, 0.01).unwrap();
     assert!(!t.pass, "a 10% brighter lamp went unnoticed: {t:?}");
 }
+
+/// A time limit scales the pilot's budgets to fit, in proportion: budgets far beyond what the
+/// time allows still end in a render, every pixel with its least and the noisy ones with more.
+#[test]
+fn a_time_limit_keeps_the_budgets_in_proportion() {
+    let l = uneven();
+    let unlimited = settings(&l, 32, 24, 1 << 16, adaptive(0.001, AdaptiveMode::Pilot));
+    let s = RenderSettings { time_limit_s: Some(0.5), ..unlimited };
+    let r = cpu::render(&l.compiled, &s, &no_progress).unwrap();
+    let (lo, mean, hi) = r.spp_range();
+    eprintln!("under 0.5 s: spp {lo}..{hi}, mean {mean:.1}");
+    // A threshold of 0.001 asks for millions of samples in the noisiest pixels.
+    assert!(hi < 1 << 16 && lo >= 1 && hi > 4 * lo, "spp {lo}..{hi}");
+    assert!(r.sum.iter().all(|p| p.is_finite()));
+}

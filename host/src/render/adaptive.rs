@@ -168,18 +168,18 @@ pub fn render(dev: &mut impl Passes, s: &RenderSettings, a: Adaptive, progress: 
         AdaptiveMode::Pilot => {
             // Budgets from the pilot alone; the pilot's samples are then dropped.
             let lo = MIN_FRESH.min(s.spp);
-            let mut budget = budgets(&rv, a.threshold, lo, s.spp);
+            let mut threshold = a.threshold;
             if let Some(limit) = s.time_limit_s {
-                // Fit the budgets into the time left at the pilot's speed, keeping their
-                // proportions: the time goes where the noise is.
+                // Fit the budgets into the time left at the pilot's speed: the threshold whose
+                // budgets (before clamping) sum to what the time allows, if that is above the
+                // one asked for. The proportions stay, so the time goes where the noise is.
                 let per_sample = pilot_s / pilot_total as f64;
                 let allowed = (limit - pilot_s).max(0.0) / per_sample.max(1e-12);
-                let wanted: f64 = budget.iter().map(|&b| b as f64).sum();
-                if wanted > allowed {
-                    let k = allowed / wanted;
-                    budget.iter_mut().for_each(|b| *b = ((*b as f64 * k).floor() as u32).max(lo));
-                }
+                let mean_sqrt = rv.iter().map(|v| v.sqrt()).sum::<f64>() / n as f64;
+                let fitted = (n as f64 * mean_sqrt * mean_sqrt / allowed.max(1.0)).sqrt();
+                threshold = threshold.max(fitted as f32);
             }
+            let budget = budgets(&rv, threshold, lo, s.spp);
             dev.clear()?;
             dev.reseed(fresh_seed(s.seed));
             let mut fresh = vec![0u32; n];

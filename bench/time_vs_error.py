@@ -123,7 +123,8 @@ def render(renderer, scene, spp, seed, out, a):
         }
         extra = next((v for k, v in extra.items() if renderer.endswith(k)), [])
         if "--adaptive" in extra:
-            common[1] = str(ADAPTIVE_MAX_SPP)
+            # Slow scenes cap their fixed ladders (`max_spp`); adaptive pixels may go 4x further.
+            common[1] = str(min(ADAPTIVE_MAX_SPP, 4 * SCENES[scene].get("max_spp", ADAPTIVE_MAX_SPP)))
         j, wall = run([KDTRACE, "render", obj, "--out", out, "--device", dev, "--json"] + extra + common)
         return j["build_s"] + j.get("prepare_s", 0.0) + j["render_s"], wall, j
     base, _, variant = renderer.partition("-")

@@ -59,16 +59,17 @@ pub struct ImageArgs {
     /// the same image bit for bit, in different times.
     #[arg(long, value_enum, default_value_t = Switch::On)]
     pub specialize: Switch,
-    /// Adaptive sampling to this relative error per pixel (σ of the mean over √(mean² + 0.01),
-    /// per channel; 0.03 aims at relMSE 1e-3); `--spp` is then the most a pixel gets.
+    /// Adaptive sampling to this relative RMS error of the image (per channel, over
+    /// √(mean² + 0.01): relMSE ≈ THRESHOLD², so 0.03 aims at 1e-3); `--spp` is then the most a
+    /// pixel gets.
     #[arg(long, value_name = "THRESHOLD")]
     pub adaptive: Option<f32>,
     /// With --adaptive: samples every pixel gets first.
     #[arg(long, value_name = "N", requires = "adaptive", default_value_t = DEFAULT_MIN_SPP)]
     pub min_spp: u32,
-    /// With --adaptive: `pilot` (unbiased: a pilot pass fixes each pixel's budget and only the
-    /// samples after it are averaged) or `as-you-go` (pixels stop when their running estimate
-    /// has converged; biased, see README).
+    /// With --adaptive: `pilot` (unbiased: after the pilot, each pixel's budget is fixed from
+    /// its neighbours' samples alone) or `as-you-go` (budgets recomputed every round from all
+    /// samples so far; biased, see README).
     #[arg(long, value_enum, requires = "adaptive", default_value_t)]
     pub adaptive_mode: AdaptiveMode,
 }

@@ -12,10 +12,13 @@
 //! multiplier; the allocation of Neyman's optimal stratified sampling), and it equals the
 //! threshold² with n_i = √v_i · mean(√v) / threshold². (Equal error per pixel, n_i ∝ v_i, would
 //! spend as much as uniform sampling for the same mean error.) Then:
-//! - `Pilot` (the default) fixes each pixel's budget from the pilot alone and averages only the
-//!   fresh samples after it. A budget chosen from samples that are then averaged correlates the
-//!   count with the values and biases the mean (Kirk & Arvo 1991, "Unbiased sampling techniques
-//!   for image synthesis"); fresh samples are independent of the budget, so the mean is unbiased.
+//! - `Pilot` (the default, unbiased) fixes each pixel's budget once, after the pilot, from its
+//!   neighbours' estimates alone (the 5×5 box without the pixel itself), and the image averages
+//!   all of the pixel's samples, pilot included. A count chosen from the very samples it then
+//!   averages correlates with their values and biases the mean (Kirk & Arvo 1991, "Unbiased
+//!   sampling techniques for image synthesis"); a count chosen from other pixels' independent
+//!   samples does not, so nothing is thrown away and each pixel's samples stay the sequence's
+//!   best-spread prefix [0, n).
 //! - `AsYouGo` keeps every sample and, after each round, recomputes the budgets from all samples
 //!   so far; the pixels below theirs go on (at most doubling per round), the others stop. Biased,
 //!   as Kirk & Arvo show: README states by how much.
@@ -33,8 +36,6 @@ use std::time::Instant;
 /// The offset in the relative variance's denominator (`compare`'s relMSE uses the same), so
 /// that black pixels do not demand samples without end.
 const DARK: f64 = 0.01;
-/// The fewest fresh samples a pixel gets in `Pilot` mode: enough for its own variance.
-const MIN_FRESH: u32 = 4;
 /// The radius of the box that averages the relative variance: 5×5 pixels.
 const SMOOTHING: usize = 2;
 
@@ -47,10 +48,6 @@ pub trait Passes {
     fn max_per_pass(&self) -> u32;
     /// The running sums (radiance with the zeroed-sample count, squares).
     fn sums(&mut self) -> Result<(Vec<Vec4>, Vec<Vec4>)>;
-    /// Zeroes the sums; the primary hits stay.
-    fn clear(&mut self) -> Result<()>;
-    /// Renders the following passes with seed `seed`.
-    fn reseed(&mut self, seed: u32);
 }
 
 /// What an adaptive render leaves: per pixel the samples its sums hold.
@@ -105,15 +102,16 @@ impl Estimator {
         }
     }
 
-    /// The smoothed estimates.
-    fn estimates(&self, s: &RenderSettings) -> Vec<f64> {
-        smooth(&self.raw, s.width as usize, s.height as usize)
+    /// The smoothed estimates; without `own`, each pixel's from its neighbours' alone.
+    fn estimates(&self, s: &RenderSettings, own: bool) -> Vec<f64> {
+        smooth(&self.raw, s.width as usize, s.height as usize, own)
     }
 }
 
 /// `values` averaged over each pixel's (2·`SMOOTHING` + 1)² neighbourhood (clipped at the
 /// image's edges).
-fn smooth(values: &[f64], width: usize, height: usize) -> Vec<f64> {
+/// Without `own`, each pixel's own value is left out of its average (its neighbours' alone).
+fn smooth(values: &[f64], width: usize, height: usize, own: bool) -> Vec<f64> {
     let r = SMOOTHING;
     let mut out = vec![0.0; values.len()];
     for y in 0..height {
@@ -121,11 +119,13 @@ fn smooth(values: &[f64], width: usize, height: usize) -> Vec<f64> {
             let (mut sum, mut n) = (0.0, 0.0);
             for yy in y.saturating_sub(r)..(y + r + 1).min(height) {
                 for xx in x.saturating_sub(r)..(x + r + 1).min(width) {
-                    sum += values[yy * width + xx];
-                    n += 1.0;
+                    if own || (xx, yy) != (x, y) {
+                        sum += values[yy * width + xx];
+                        n += 1.0;
+                    }
                 }
             }
-            out[y * width + x] = sum / n;
+            out[y * width + x] = if n > 0.0 { sum / n } else { 0.0 };
         }
     }
     out
@@ -163,11 +163,11 @@ pub fn render(dev: &mut impl Passes, s: &RenderSettings, a: Adaptive, progress: 
         estimator.update(&dev.sums()?.0, &counts);
     }
     let pilot_s = clock.elapsed().as_secs_f64();
-    let rv = estimator.estimates(s);
     match a.mode {
         AdaptiveMode::Pilot => {
-            // Budgets from the pilot alone; the pilot's samples are then dropped.
-            let lo = MIN_FRESH.min(s.spp);
+            // Each pixel's budget from its neighbours' pilot samples alone, so that its count
+            // does not depend on its own samples, which all stay in the image.
+            let rv = estimator.estimates(s, false);
             let mut threshold = a.threshold;
             if let Some(limit) = s.time_limit_s {
                 // Fit the budgets into the time left at the pilot's speed: the threshold whose
@@ -179,16 +179,22 @@ pub fn render(dev: &mut impl Passes, s: &RenderSettings, a: Adaptive, progress: 
                 let fitted = (n as f64 * mean_sqrt * mean_sqrt / allowed.max(1.0)).sqrt();
                 threshold = threshold.max(fitted as f32);
             }
-            let budget = budgets(&rv, threshold, lo, s.spp);
-            dev.clear()?;
-            dev.reseed(fresh_seed(s.seed));
-            let mut fresh = vec![0u32; n];
+            let budget = budgets(&rv, threshold, a.min_spp, s.spp);
             let total: u64 = budget.iter().map(|&b| b as u64).sum();
-            run_ranges(dev, &mut fresh, &budget, 0, step, &|done| progress(done, total), &out_of_time, &clock)?;
-            Ok(Outcome { counts: fresh })
+            run_ranges(
+                dev,
+                &mut counts,
+                &budget,
+                0,
+                step,
+                &|done| progress(pilot_total + done, total),
+                &out_of_time,
+                &clock,
+            )?;
+            Ok(Outcome { counts })
         }
         AdaptiveMode::AsYouGo => {
-            let mut rv = rv;
+            let mut rv = estimator.estimates(s, true);
             let mut done = pilot_total;
             loop {
                 // A pixel below its budget goes on, at most doubling its samples this round.
@@ -214,18 +220,11 @@ pub fn render(dev: &mut impl Passes, s: &RenderSettings, a: Adaptive, progress: 
                 )?;
                 done += round;
                 estimator.update(&dev.sums()?.0, &counts);
-                rv = estimator.estimates(s);
+                rv = estimator.estimates(s, true);
             }
             Ok(Outcome { counts })
         }
     }
-}
-
-/// The seed of the fresh samples after a pilot rendered with `seed`: their own randomisation
-/// (scrambling), independent of the pilot's, so each pixel's fresh samples are the sequence's
-/// best-spread prefix [0, n) rather than a run starting after the pilot's.
-pub fn fresh_seed(seed: u32) -> u32 {
-    seed ^ 0x9e37_79b9
 }
 
 /// Passes until every pixel's `counts[i]` reaches `target[i]`, its samples numbered from
@@ -291,13 +290,16 @@ mod tests {
         // A 7×7 image with one pixel of 25 in the middle reaches the 5×5 box around it.
         let mut v = vec![0.0; 49];
         v[24] = 25.0;
-        let d = smooth(&v, 7, 7);
+        let d = smooth(&v, 7, 7, true);
         let live: Vec<usize> = (0..49).filter(|&i| d[i] > 0.0).collect();
         let expected: Vec<usize> = (1..6).flat_map(|y| (1..6).map(move |x| y * 7 + x)).collect();
         assert_eq!(live, expected);
         // The middle pixel's box is whole; (1, 1)'s is clipped to 4×4.
         assert_eq!((d[24], d[8]), (1.0, 25.0 / 16.0));
         // Clipped at the edges: in a 2×2 image every box holds the 4 pixels.
-        assert_eq!(smooth(&[9.0, 0.0, 0.0, 0.0], 2, 2), [2.25; 4]);
+        assert_eq!(smooth(&[9.0, 0.0, 0.0, 0.0], 2, 2, true), [2.25; 4]);
+        // Without their own values: the other three pixels' mean.
+        assert_eq!(smooth(&[9.0, 0.0, 0.0, 0.0], 2, 2, false), [0.0, 3.0, 3.0, 3.0]);
+        assert_eq!(smooth(&[5.0], 1, 1, false), [0.0]);
     }
 }

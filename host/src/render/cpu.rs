@@ -162,14 +162,4 @@ impl adaptive::Passes for CpuPasses<'_> {
     fn sums(&mut self) -> Result<(Vec<Vec4>, Vec<Vec4>)> {
         Ok((self.sum.clone(), self.sum_sq.clone()))
     }
-
-    fn clear(&mut self) -> Result<()> {
-        self.sum.fill(Vec4::ZERO);
-        self.sum_sq.fill(Vec4::ZERO);
-        Ok(())
-    }
-
-    fn reseed(&mut self, seed: u32) {
-        self.params.seed = seed;
-    }
 }

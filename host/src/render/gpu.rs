@@ -553,20 +553,6 @@ impl super::adaptive::Passes for GpuPasses<'_> {
     fn sums(&mut self) -> Result<(Vec<Vec4>, Vec<Vec4>)> {
         Ok((self.gpu.read_back(self.accum, self.bytes)?, self.gpu.read_back(self.accum_sq, self.bytes)?))
     }
-
-    fn clear(&mut self) -> Result<()> {
-        let g = self.gpu;
-        let mut encoder = g.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("clear") });
-        encoder.clear_buffer(self.accum, 0, None);
-        encoder.clear_buffer(self.accum_sq, 0, None);
-        g.queue.submit(Some(encoder.finish()));
-        g.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| anyhow!("GPU clear failed: {e}"))?;
-        Ok(())
-    }
-
-    fn reseed(&mut self, seed: u32) {
-        self.params.seed = seed;
-    }
 }
 
 /// The specialisation constants of the pipeline that renders `c` with `s`: the scene's feature

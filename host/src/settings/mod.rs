@@ -102,22 +102,23 @@ pub enum Aov {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum AdaptiveMode {
-    /// A pilot pass of `min_spp` samples fixes each pixel's budget; the image averages only the
-    /// fresh samples after it, which the budget does not depend on (unbiased).
+    /// After `min_spp` pilot samples everywhere, each pixel's budget is fixed from its
+    /// neighbours' pilot samples alone, so it does not depend on the pixel's own samples, which
+    /// all stay in its mean (unbiased).
     #[default]
     Pilot,
-    /// Pixels stop once their own running estimate says they have converged; the image
-    /// averages every sample, pilot included (biased: a pixel that happens to look converged
+    /// After each round the budgets are recomputed from every sample so far, the pixel's own
+    /// included; the pixels below theirs go on (biased: a pixel that happens to look converged
     /// stops early; README states the bias measured).
     AsYouGo,
 }
 
-/// Adaptive sampling: every pixel gets `min_spp` samples, then as many more (up to `spp`) as its
-/// estimated relative error needs to fall to `threshold`.
+/// Adaptive sampling: every pixel gets `min_spp` samples, then as many more (up to `spp`) as the
+/// image's estimated relative error needs to fall to `threshold`, most where the noise is.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct Adaptive {
-    /// Target relative standard error of a pixel's mean (per channel, σ/√n over
-    /// √(mean² + 0.01), the form of `compare`'s relMSE): 0.03 aims at relMSE 1e-3.
+    /// Target relative RMS error of the image (per channel, over √(mean² + 0.01), the form of
+    /// `compare`'s relMSE): relMSE ≈ threshold², so 0.03 aims at relMSE 1e-3.
     pub threshold: f32,
     pub min_spp: u32,
     pub mode: AdaptiveMode,

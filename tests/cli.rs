@@ -215,3 +215,27 @@ fn specialisation_and_adaptive_sampling_from_the_command_line() {
     assert_eq!(c["adaptive"]["mode"], "pilot");
     assert_eq!(c["adaptive"]["min_spp"], 4);
 }
+
+/// `compile` takes the tree's build settings: a depth limit of 1 stores at most three nodes.
+#[test]
+fn compile_takes_build_settings() {
+    let scene = repo("scenes/cornell-box.obj");
+    let nodes = |out: &Path, extra: &[&str]| {
+        let o = kdtrace(&[&["compile", &scene, "--out", out.to_str().unwrap(), "--json"][..], extra].concat());
+        assert!(o.status.success(), "{}", stderr(&o));
+        let line: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        line["nodes"].as_u64().unwrap()
+    };
+    let deep = nodes(&tmp("deep.kdc"), &[]);
+    let shallow = nodes(&tmp("shallow.kdc"), &["--max-depth", "1"]);
+    assert!(shallow <= 3 && deep > shallow, "{deep} and {shallow} nodes");
+    let o = kdtrace(&[
+        "render",
+        tmp("shallow.kdc").to_str().unwrap(),
+        "--out",
+        tmp("s.png").to_str().unwrap(),
+        "--spp",
+        "1",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}

@@ -1,7 +1,7 @@
 //! `kdtrace compile`: parse a scene, build its k-d tree, write both to one `.kdc` file.
+use super::args::BuildArgs;
 use super::{load, print_json};
 use crate::files;
-use crate::kdbuild::BuildSettings;
 use crate::render::kdc;
 use crate::SceneKind;
 use anyhow::{bail, Result};
@@ -20,6 +20,9 @@ pub struct CompileArgs {
     /// Print one JSON line to stdout.
     #[arg(long)]
     json: bool,
+    /// The tree's build settings (defaults: the CPU's tree, `kdbuild::BuildSettings`).
+    #[command(flatten)]
+    build: BuildArgs,
 }
 
 /// `compile --json`.
@@ -41,7 +44,7 @@ pub fn run(a: CompileArgs) -> Result<ExitCode> {
         bail!("{}: compile writes a .kdc file", a.out.display());
     }
     files::check_outputs(&[&a.out], &[&a.scene])?;
-    let build = BuildSettings::default();
+    let build = a.build.settings()?;
     let loaded = load(&a.scene, build)?;
     let t = Instant::now();
     kdc::write(&a.out, &loaded.compiled, &build, &loaded.settings)?;

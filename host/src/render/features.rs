@@ -58,14 +58,16 @@ pub fn variant_bits(c: &Compiled, s: &RenderSettings) -> u32 {
 pub fn analyse(c: &Compiled, s: &RenderSettings) -> Features {
     let scene = &c.scene;
     let emitters = scene.lights.len();
-    let emitter_power = scene
-        .lights
-        .iter()
-        .map(|l| {
-            let m = &scene.materials[scene.info[l.triangle as usize].material as usize];
-            l.area as f64 * shared::vecmath::luminance(xyz(m.emission)) as f64
-        })
-        .sum();
+    // `+ 0.0`: an empty float sum is −0.0.
+    let emitter_power = 0.0
+        + scene
+            .lights
+            .iter()
+            .map(|l| {
+                let m = &scene.materials[scene.info[l.triangle as usize].material as usize];
+                l.area as f64 * shared::vecmath::luminance(xyz(m.emission)) as f64
+            })
+            .sum::<f64>();
     let environment = max_component(s.environment) > 0.0;
     // Materials that triangles use (a scene file may define more).
     let mut used = vec![false; scene.materials.len()];

@@ -182,8 +182,8 @@ fn lambertian_sample_directions_follow_its_pdf_about_any_normal() {
     for (k, &n) in normals.iter().enumerate() {
         let mut worst_pdf_mismatch = 0f64;
         let mut draw = |u1: f32, u2: f32| {
-            let s = sample(Variant::GENERIC_SPEC, &m, n, u1, u2);
-            let (f, pdf) = eval(Variant::GENERIC_SPEC, &m, n, s.wi);
+            let s = sample(Variant::GENERIC_SPEC, &m, n, n, u1, u2);
+            let (f, pdf) = eval(Variant::GENERIC_SPEC, &m, n, n, s.wi);
             if s.pdf > 1e-3 {
                 worst_pdf_mismatch = worst_pdf_mismatch.max((s.pdf as f64 / pdf as f64 - 1.0).abs());
                 // weight = f·cos/pdf = albedo.
@@ -192,7 +192,7 @@ fn lambertian_sample_directions_follow_its_pdf_about_any_normal() {
             }
             s.wi
         };
-        let pdf = |w: Vec3| eval(Variant::GENERIC_SPEC, &m, n, w.normalize()).1 as f64;
+        let pdf = |w: Vec3| eval(Variant::GENERIC_SPEC, &m, n, n, w.normalize()).1 as f64;
         let good = spherical_chi2(&mut draw, &pdf, 10 + k as u64);
         assert!(worst_pdf_mismatch < 1e-3, "normal {n:?}: sample's pdf differs from eval's by {worst_pdf_mismatch}");
         // Wrong: cos²θ·3/(2π) about the normal, normalised but too peaked.
@@ -205,7 +205,7 @@ fn lambertian_sample_directions_follow_its_pdf_about_any_normal() {
             }
         };
         let wrong =
-            spherical_chi2(&mut |u1, u2| sample(Variant::GENERIC_SPEC, &m, n, u1, u2).wi, &wrong_pdf, 10 + k as u64);
+            spherical_chi2(&mut |u1, u2| sample(Variant::GENERIC_SPEC, &m, n, n, u1, u2).wi, &wrong_pdf, 10 + k as u64);
         assert_pass_and_wrong_rejected(&format!("Lambertian about {n:?}"), good, wrong);
     }
 }

@@ -19,10 +19,12 @@ pub const FEATURE_DIFFUSE: u32 = 1 << 3;
 /// Light can reach the camera by reflection: there is a source (an emitter or the environment)
 /// and a material that reflects. Without it a path ends at its first hit, after its emission.
 pub const FEATURE_INDIRECT: u32 = 1 << 4;
+/// Conductors (`material::conductor`) are present.
+pub const FEATURE_CONDUCTOR: u32 = 1 << 5;
 /// Every feature: the generic code, which serves any scene.
-pub const FEATURES_ALL: u32 = (1 << 5) - 1;
+pub const FEATURES_ALL: u32 = (1 << 6) - 1;
 /// The material-kind bits: when exactly one is set, material dispatch is skipped.
-pub const FEATURE_MATERIALS: u32 = FEATURE_DIFFUSE;
+pub const FEATURE_MATERIALS: u32 = FEATURE_DIFFUSE | FEATURE_CONDUCTOR;
 
 /// A bounce limit or roulette start given by specialisation constant: this value (the kernel's
 /// default) means "read it from `RenderParams`".

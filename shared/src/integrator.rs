@@ -13,7 +13,7 @@ use crate::features::{Variant, FEATURE_EMITTERS, FEATURE_ENVIRONMENT, FEATURE_IN
 use crate::glam::{Vec3, Vec4};
 use crate::kdtree::Hit;
 use crate::layout::{RenderParams, AOV_COST, NO_HIT, NO_LIGHT};
-use crate::material::{emitted, eval, sample as sample_bsdf};
+use crate::material::{emitted, eval, is_delta, sample as sample_bsdf};
 use crate::numerics::{offset_ray_origin, sanitize_radiance};
 use crate::raycast::{any, closest};
 use crate::rng::Sampler;
@@ -138,11 +138,14 @@ fn shade_vertex(
         return false;
     }
 
-    // Shade on the side the ray arrived from: diffuse is two-sided.
+    // Shade on the side the ray arrived from: the materials are two-sided.
     let ns = if dot(ng, dir) < 0.0 { n } else { -n };
     let spawn = offset_ray_origin(pos, surface.error, ns);
+    let wo = -normalize(dir);
 
-    if lights {
+    // A smooth mirror reflects no sampled light: its reflection of an emitter counts in full
+    // when the BSDF ray hits it (`DELTA_PDF` takes the whole MIS weight).
+    if lights & !is_delta(v, mat) {
         // The set's best-spread pair picks the light and the point on it: the picking dimension,
         // rescaled within the picked light's interval, is the point's first coordinate, so the
         // points stay stratified over a light made of several triangles (a quad lamp). With one
@@ -160,7 +163,7 @@ fn shade_vertex(
         let dist2 = length_squared(to_light);
         let wi = to_light * (1.0 / dist2.sqrt());
         let cos_l = -dot(nl, wi);
-        let (f, pdf_bsdf) = eval(v, mat, ns, wi);
+        let (f, pdf_bsdf) = eval(v, mat, ns, wo, wi);
         if (cos_l > 0.0) & (pdf_bsdf > 0.0) & (dist2 > 0.0) {
             let light_pdf = light.pmf * dist2 / (cos_l * light.area);
             let target = offset_ray_origin(q, on_light.error, nl);
@@ -172,7 +175,7 @@ fn shade_vertex(
         }
     }
 
-    let bs = sample_bsdf(v, mat, ns, ub1, ub2);
+    let bs = sample_bsdf(v, mat, ns, wo, ub1, ub2);
     if bs.pdf <= 0.0 {
         return false;
     }

@@ -74,9 +74,12 @@ pub struct TriangleInfo {
     pub light: u32,
 }
 
-/// Material kinds (the tag of the tag + index dispatch). Only Lambertian exists yet; the layout
-/// reserves `params` for the physically based materials to come.
+/// Material kinds (the tag of the tag + index dispatch, `material`).
+/// Lambertian reflection of `albedo`.
 pub const MATERIAL_DIFFUSE: u32 = 0;
+/// A conductor: complex index of refraction `eta` + i·`k` per channel, smooth (`params.x`, the
+/// GGX α, is 0) or rough.
+pub const MATERIAL_CONDUCTOR: u32 = 1;
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -88,8 +91,12 @@ pub struct Material {
     pub albedo: Vec4,
     /// Emitted radiance from the front (counter-clockwise) side (MTL `Ke`), linear RGB in `xyz`.
     pub emission: Vec4,
-    /// Reserved for roughness, IOR and the like.
+    /// `x`: GGX roughness α (0: smooth); the rest reserved for IOR and the like.
     pub params: Vec4,
+    /// Conductor: the real part of the complex index of refraction per channel, in `xyz`.
+    pub eta: Vec4,
+    /// Conductor: the imaginary part (absorption), in `xyz`.
+    pub k: Vec4,
 }
 
 /// One emissive triangle in the light-selection table.

@@ -41,7 +41,7 @@ pub fn section_offset(p: &Parts, which: usize) -> usize {
     let sizes = [
         n("triangles") * 48,
         n("triangles") * 8,
-        n("materials") * 64,
+        n("materials") * std::mem::size_of::<shared::layout::Material>(),
         n("lights") * 16,
         n("nodes") * 8,
         n("indices") * 4,

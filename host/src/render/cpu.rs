@@ -5,7 +5,7 @@ use crate::render::{adaptive, Compiled, Progress, Rendered};
 use crate::settings::RenderSettings;
 use anyhow::Result;
 use rayon::prelude::*;
-use shared::features::FEATURES_ALL;
+use shared::features::{FEATURES_ALL, FEATURE_CONDUCTOR, FEATURE_DIFFUSE, FEATURE_INDIRECT, FEATURE_MATERIALS};
 use shared::glam::Vec4;
 use shared::integrator::render_samples_for;
 use shared::layout::{RenderParams, NO_HIT};
@@ -23,16 +23,45 @@ const ADAPTIVE_PASS_SAMPLES: u32 = 16;
 /// A monomorphised variant of the integrator: `render_samples_for::<F>`.
 pub type VariantFn = fn(&SceneView, &RenderParams, u32, u32, u32, u32, &mut Vec4, &mut Vec4, &mut u32);
 
-/// One compiled variant per feature set: `VARIANTS[bits]` is `render_samples_for::<bits>`.
+/// The compiled variants: every combination of the feature bits outside the materials, each
+/// for diffuse alone and for every material kind (`cpu_variant_bits`): `VARIANTS[i]` is
+/// `render_samples_for::<{ CANONICAL[i] }>`.
 macro_rules! variants {
-    ($($bits:literal)*) => { [$(render_samples_for::<$bits> as VariantFn),*] };
+    ($($bits:literal)*) => {
+        #[cfg_attr(not(test), allow(dead_code))]
+        const CANONICAL: [u32; 32] = [$($bits),*];
+        static VARIANTS: [VariantFn; 32] = [$(render_samples_for::<$bits> as VariantFn),*];
+    };
 }
-static VARIANTS: [VariantFn; FEATURES_ALL as usize + 1] =
-    variants!(0 1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16 17 18 19 20 21 22 23 24 25 26 27 28 29 30 31);
+variants!(
+    8 9 10 11 12 13 14 15 24 25 26 27 28 29 30 31
+    40 41 42 43 44 45 46 47 56 57 58 59 60 61 62 63
+);
 
-/// The CPU's variant of the integrator for feature bits `bits`.
+/// The feature bits the CPU compiles a variant for, covering `bits`: the bits outside the
+/// materials as they are, and diffuse alone or every material kind (a monomorph per material
+/// set would multiply the variants with each kind; dispatch over the kinds present costs a
+/// compare).
+pub fn cpu_variant_bits(bits: u32) -> u32 {
+    let rest = bits & FEATURES_ALL & !FEATURE_MATERIALS;
+    if bits & FEATURE_MATERIALS == FEATURE_DIFFUSE {
+        rest | FEATURE_DIFFUSE
+    } else {
+        rest | FEATURE_MATERIALS
+    }
+}
+
+/// Where `cpu_variant_bits(bits)` sits in `VARIANTS`: bits 0–2 and `FEATURE_INDIRECT` (bit 4)
+/// count through 16, every material kind adds 16.
+fn variant_index(bits: u32) -> usize {
+    let b = cpu_variant_bits(bits);
+    let low = (b & 0b111) | ((b & FEATURE_INDIRECT) >> 1);
+    (low + if b & FEATURE_CONDUCTOR != 0 { 16 } else { 0 }) as usize
+}
+
+/// The CPU's variant of the integrator for feature bits `bits` (`cpu_variant_bits`).
 pub fn variant(bits: u32) -> VariantFn {
-    VARIANTS[(bits & FEATURES_ALL) as usize]
+    VARIANTS[variant_index(bits)]
 }
 
 /// Renders on the CPU: rayon over image rows, every pixel through `shared::integrator`. Without a
@@ -161,5 +190,23 @@ impl adaptive::Passes for CpuPasses<'_> {
 
     fn sums(&mut self) -> Result<(Vec<Vec4>, Vec<Vec4>)> {
         Ok((self.sum.clone(), self.sum_sq.clone()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_feature_set_finds_the_variant_compiled_for_it() {
+        for bits in 0..=FEATURES_ALL {
+            let i = variant_index(bits);
+            assert_eq!(CANONICAL[i], cpu_variant_bits(bits), "feature bits {bits:#b}");
+            // The variant covers the set: it leaves out nothing the scene uses.
+            assert_eq!(CANONICAL[i] & bits, bits & FEATURES_ALL);
+        }
+        for (i, &c) in CANONICAL.iter().enumerate() {
+            assert_eq!(variant_index(c), i);
+        }
     }
 }

@@ -5,9 +5,10 @@ use crate::render::Compiled;
 use crate::settings::RenderSettings;
 use serde::Serialize;
 use shared::features::{
-    FEATURES_ALL, FEATURE_DIFFUSE, FEATURE_EMITTERS, FEATURE_ENVIRONMENT, FEATURE_INDIRECT, FEATURE_MANY_EMITTERS,
+    FEATURES_ALL, FEATURE_CONDUCTOR, FEATURE_DIFFUSE, FEATURE_EMITTERS, FEATURE_ENVIRONMENT, FEATURE_INDIRECT,
+    FEATURE_MANY_EMITTERS,
 };
-use shared::layout::MATERIAL_DIFFUSE;
+use shared::layout::{MATERIAL_CONDUCTOR, MATERIAL_DIFFUSE};
 use shared::vecmath::{max_component, xyz};
 
 /// The feature set and the facts behind it.
@@ -37,12 +38,13 @@ pub struct Features {
 }
 
 /// Each bit's name, as `render --json` and the tests print them.
-pub const FEATURE_NAMES: [(u32, &str); 5] = [
+pub const FEATURE_NAMES: [(u32, &str); 6] = [
     (FEATURE_EMITTERS, "emitters"),
     (FEATURE_MANY_EMITTERS, "many_emitters"),
     (FEATURE_ENVIRONMENT, "environment"),
     (FEATURE_DIFFUSE, "diffuse"),
     (FEATURE_INDIRECT, "indirect"),
+    (FEATURE_CONDUCTOR, "conductor"),
 ];
 
 /// The feature bits of the variant that renders `c` with `s`: the scene's set, or every bit for
@@ -76,7 +78,9 @@ pub fn analyse(c: &Compiled, s: &RenderSettings) -> Features {
     }
     let used: Vec<_> = scene.materials.iter().zip(&used).filter(|(_, &u)| u).map(|(m, _)| m).collect();
     let diffuse = used.iter().any(|m| m.kind == MATERIAL_DIFFUSE);
-    let reflects = used.iter().any(|m| max_component(xyz(m.albedo)) > 0.0);
+    let conductor = used.iter().any(|m| m.kind == MATERIAL_CONDUCTOR);
+    // A conductor always reflects (its Fresnel reflectance is positive at every angle).
+    let reflects = conductor || used.iter().any(|m| m.kind == MATERIAL_DIFFUSE && max_component(xyz(m.albedo)) > 0.0);
     // (Every emissive triangle is in the light table: `emitters` counts them all.) A render
     // without indirect bounces still follows the BSDF sample to an emitter (MIS), so the bounce
     // limit does not enter.
@@ -88,6 +92,7 @@ pub fn analyse(c: &Compiled, s: &RenderSettings) -> Features {
         (environment, FEATURE_ENVIRONMENT),
         (diffuse, FEATURE_DIFFUSE),
         (indirect, FEATURE_INDIRECT),
+        (conductor, FEATURE_CONDUCTOR),
     ] {
         if on {
             bits |= bit;
@@ -98,7 +103,7 @@ pub fn analyse(c: &Compiled, s: &RenderSettings) -> Features {
         emitters,
         emitter_power,
         environment: if environment { "constant" } else { "black" },
-        materials: if diffuse { vec!["diffuse"] } else { vec![] },
+        materials: [(diffuse, "diffuse"), (conductor, "conductor")].iter().filter(|m| m.0).map(|m| m.1).collect(),
         textures: false,
         alpha_masks: false,
         bounces: s.max_bounces,

@@ -31,13 +31,15 @@ use anyhow::{anyhow, bail, Context, Result};
 use bytemuck::Pod;
 use serde::{Deserialize, Serialize};
 use shared::glam::{DVec3, Vec3, Vec4};
-use shared::layout::{KdNode, Light, Material, Triangle, TriangleInfo, KD_MAX_DEPTH, MATERIAL_DIFFUSE, NO_LIGHT};
+use shared::layout::{
+    KdNode, Light, Material, Triangle, TriangleInfo, KD_MAX_DEPTH, MATERIAL_CONDUCTOR, MATERIAL_DIFFUSE, NO_LIGHT,
+};
 use std::path::Path;
 use xxhash_rust::xxh3::Xxh3;
 
 pub const MAGIC: [u8; 8] = *b"\x89KDC\r\n\x1a\n";
 /// Bump on any change of the layout or of the meaning of a field.
-pub const FORMAT_VERSION: u32 = 1;
+pub const FORMAT_VERSION: u32 = 2;
 /// Bytes before the JSON header.
 pub const FIXED_HEADER: usize = 32;
 
@@ -447,11 +449,14 @@ fn check_scene(h: &Header, s: &Sections) -> Result<()> {
     }
     let rgb_ok = |v: Vec4| v.truncate().is_finite() && v.truncate().min_element() >= 0.0;
     for (i, m) in materials.iter().enumerate() {
-        if m.kind != MATERIAL_DIFFUSE {
+        if m.kind != MATERIAL_DIFFUSE && m.kind != MATERIAL_CONDUCTOR {
             bail!("material {i}: unknown kind {}", m.kind);
         }
-        if !rgb_ok(m.albedo) || !rgb_ok(m.emission) || !m.params.is_finite() {
-            bail!("material {i}: colours must be finite and non-negative");
+        if !rgb_ok(m.albedo) || !rgb_ok(m.emission) || !rgb_ok(m.eta) || !rgb_ok(m.k) || !m.params.is_finite() {
+            bail!("material {i}: colours and indices of refraction must be finite and non-negative");
+        }
+        if !(0.0..=1.0).contains(&m.params.x) {
+            bail!("material {i}: roughness alpha {} must be within 0..=1", m.params.x);
         }
     }
     for (i, t) in info.iter().enumerate() {

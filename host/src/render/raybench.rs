@@ -72,6 +72,7 @@ pub fn make_rays(c: &Compiled, s: &RenderSettings, kind: RayKind, traversal: Tra
                 Variant::GENERIC_SPEC,
                 &c.scene.materials[c.scene.info[hit.triangle as usize].material as usize],
                 n,
+                -d.normalize(),
                 u1,
                 u2,
             )

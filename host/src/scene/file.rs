@@ -10,13 +10,14 @@
 use crate::files::Files;
 use crate::scene::obj::{self, DEFAULT_ALBEDO, MAX_COORDINATE};
 use crate::scene::transform::Placement;
-use crate::scene::{diffuse, WorldScene};
+use crate::scene::{conductor, diffuse, WorldScene};
 use crate::settings::scene::SceneSettings;
 use crate::settings::{SamplerKind, MAX_BOUNCES, MAX_SIDE, MAX_SPP};
 use anyhow::{anyhow, bail, Context, Result};
 use serde::{Deserialize, Serialize};
 use shared::glam::{DVec3, Vec3};
 use shared::layout::Material;
+use shared::material::CONDUCTOR_PRESETS;
 use std::collections::BTreeMap;
 use std::ops::Range;
 use std::path::{Component, Path, PathBuf};
@@ -75,10 +76,12 @@ pub struct RenderSection {
     pub time_limit: Option<Seconds>,
 }
 
+/// A named material. Which keys apply depends on `type`; a key of another type is an error
+/// (`TryFrom<RawMaterial>`), reported at the material's table.
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(try_from = "RawMaterial")]
 pub struct MaterialSection {
-    #[serde(rename = "type", default)]
+    #[serde(rename = "type")]
     pub kind: MaterialKind,
     /// Diffuse reflectance, linear RGB in 0..=1 (default 0.5 grey).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -86,6 +89,104 @@ pub struct MaterialSection {
     /// Emitted radiance from the front (counter-clockwise) side, linear RGB (default none).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub emission: Option<Color>,
+    /// Conductor: a named metal (`shared::material::CONDUCTOR_PRESETS`) instead of `eta` and `k`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub metal: Option<String>,
+    /// Conductor: complex index of refraction, real and imaginary parts per channel.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub eta: Option<Color>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub k: Option<Color>,
+    /// Conductor: GGX roughness α as Mitsuba's `alpha` (0 or absent: smooth).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub alpha: Option<Alpha>,
+}
+
+/// A material table as written, before the keys are checked against its type.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawMaterial {
+    #[serde(rename = "type", default)]
+    kind: MaterialKind,
+    albedo: Option<Albedo>,
+    emission: Option<Color>,
+    metal: Option<String>,
+    eta: Option<Color>,
+    k: Option<Color>,
+    alpha: Option<Alpha>,
+}
+
+impl TryFrom<RawMaterial> for MaterialSection {
+    type Error = String;
+    fn try_from(r: RawMaterial) -> Result<Self, String> {
+        let conductor_keys = r.metal.is_some() || r.eta.is_some() || r.k.is_some() || r.alpha.is_some();
+        match r.kind {
+            MaterialKind::Diffuse if conductor_keys => {
+                return Err("metal, eta, k and alpha apply to conductors (type = \"conductor\")".into());
+            }
+            MaterialKind::Conductor => {
+                if r.albedo.is_some() {
+                    return Err("a conductor's colour comes from eta and k (or metal), not albedo".into());
+                }
+                match (&r.metal, r.eta.is_some(), r.k.is_some()) {
+                    (Some(_), false, false) => {}
+                    (Some(_), _, _) => return Err("give a conductor either metal or eta and k, not both".into()),
+                    (None, true, true) => {}
+                    (None, _, _) => {
+                        return Err(format!(
+                            "a conductor needs metal = \"NAME\" ({}) or both eta and k",
+                            preset_names()
+                        ))
+                    }
+                }
+                if let Some(name) = &r.metal {
+                    if preset(name).is_none() {
+                        return Err(format!("unknown metal {name:?} (known: {})", preset_names()));
+                    }
+                }
+            }
+            MaterialKind::Diffuse => {}
+        }
+        Ok(Self {
+            kind: r.kind,
+            albedo: r.albedo,
+            emission: r.emission,
+            metal: r.metal,
+            eta: r.eta,
+            k: r.k,
+            alpha: r.alpha,
+        })
+    }
+}
+
+/// The named metal's (η, κ).
+fn preset(name: &str) -> Option<([f32; 3], [f32; 3])> {
+    CONDUCTOR_PRESETS.iter().find(|p| p.0 == name).map(|p| (p.1, p.2))
+}
+
+fn preset_names() -> String {
+    CONDUCTOR_PRESETS.iter().map(|p| p.0).collect::<Vec<_>>().join(", ")
+}
+
+/// GGX roughness α within 0..=1.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "f64", into = "f64")]
+pub struct Alpha(pub f64);
+
+impl TryFrom<f64> for Alpha {
+    type Error = String;
+    fn try_from(a: f64) -> Result<Self, String> {
+        if !(0.0..=1.0).contains(&a) {
+            return Err(format!("roughness alpha {a} must be within 0..=1"));
+        }
+        Ok(Self(a))
+    }
+}
+
+impl From<Alpha> for f64 {
+    fn from(a: Alpha) -> f64 {
+        a.0
+    }
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -325,26 +426,29 @@ impl Scale {
     }
 }
 
-/// Material models. Only Lambertian diffuse exists yet; the names of the physically based models
-/// to come are reserved so that a file using them fails clearly instead of rendering diffuse.
+/// Material models. The names of the physically based models still to come are reserved so that
+/// a file using them fails clearly instead of rendering diffuse.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(try_from = "String", into = "String")]
 pub enum MaterialKind {
     #[default]
     Diffuse,
+    Conductor,
 }
 
-const RESERVED_MATERIALS: [&str; 5] = ["conductor", "dielectric", "plastic", "roughconductor", "principled"];
+const RESERVED_MATERIALS: [&str; 3] = ["dielectric", "plastic", "principled"];
 
 impl TryFrom<String> for MaterialKind {
     type Error = String;
     fn try_from(s: String) -> Result<Self, String> {
         match s.as_str() {
             "diffuse" => Ok(MaterialKind::Diffuse),
+            "conductor" => Ok(MaterialKind::Conductor),
+            "roughconductor" => Err("use type = \"conductor\" with alpha for a rough conductor".into()),
             r if RESERVED_MATERIALS.contains(&r) => Err(format!(
                 "material type {r:?} is not supported yet (reserved for the physically based materials to come)"
             )),
-            other => Err(format!("unknown material type {other:?} (expected \"diffuse\")")),
+            other => Err(format!("unknown material type {other:?} (expected \"diffuse\" or \"conductor\")")),
         }
     }
 }
@@ -353,6 +457,7 @@ impl From<MaterialKind> for String {
     fn from(k: MaterialKind) -> String {
         match k {
             MaterialKind::Diffuse => "diffuse".into(),
+            MaterialKind::Conductor => "conductor".into(),
         }
     }
 }
@@ -420,11 +525,17 @@ pub fn settings_of(file: &SceneFile) -> SceneSettings {
 }
 
 fn scene_material(m: &MaterialSection) -> Material {
+    let emission = m.emission.map_or(Vec3::ZERO, |e| vec3_of(e.0));
     match m.kind {
-        MaterialKind::Diffuse => diffuse(
-            m.albedo.map_or(Vec3::splat(DEFAULT_ALBEDO), |a| vec3_of(a.0)),
-            m.emission.map_or(Vec3::ZERO, |e| vec3_of(e.0)),
-        ),
+        MaterialKind::Diffuse => diffuse(m.albedo.map_or(Vec3::splat(DEFAULT_ALBEDO), |a| vec3_of(a.0)), emission),
+        MaterialKind::Conductor => {
+            // The checks of `TryFrom<RawMaterial>` leave a known metal, or both eta and k.
+            let (eta, k) = match &m.metal {
+                Some(name) => preset(name).map(|(e, k)| (Vec3::from(e), Vec3::from(k))).unwrap_or_default(),
+                None => (m.eta.map_or(Vec3::ONE, |e| vec3_of(e.0)), m.k.map_or(Vec3::ZERO, |k| vec3_of(k.0))),
+            };
+            conductor(eta, k, m.alpha.map_or(0.0, |a| a.0 as f32), emission)
+        }
     }
 }
 

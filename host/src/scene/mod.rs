@@ -12,7 +12,7 @@ pub mod transform;
 
 use anyhow::{bail, Result};
 use shared::glam::{DVec3, Vec3, Vec4};
-use shared::layout::{Light, Material, Triangle, TriangleInfo, MATERIAL_DIFFUSE, NO_LIGHT};
+use shared::layout::{Light, Material, Triangle, TriangleInfo, MATERIAL_CONDUCTOR, MATERIAL_DIFFUSE, NO_LIGHT};
 use shared::material::is_emissive;
 use shared::triangle::area;
 use shared::vecmath::{luminance, xyz};
@@ -71,6 +71,19 @@ pub fn diffuse(albedo: Vec3, emission: Vec3) -> Material {
         albedo: albedo.extend(0.0),
         emission: emission.extend(0.0),
         params: Vec4::ZERO,
+        eta: Vec4::ZERO,
+        k: Vec4::ZERO,
+    }
+}
+
+/// A conductor of complex index of refraction `eta` + i·`k`, GGX roughness `alpha` (0: smooth).
+pub fn conductor(eta: Vec3, k: Vec3, alpha: f32, emission: Vec3) -> Material {
+    Material {
+        kind: MATERIAL_CONDUCTOR,
+        params: Vec4::new(alpha, 0.0, 0.0, 0.0),
+        eta: eta.extend(0.0),
+        k: k.extend(0.0),
+        ..diffuse(Vec3::ZERO, emission)
     }
 }
 

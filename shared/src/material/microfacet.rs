@@ -1,0 +1,63 @@
+//! The GGX (Trowbridge–Reitz) microfacet distribution, isotropic, in a local frame whose z is
+//! the macro-surface normal: the normal distribution D (Walter et al. 2007), Smith's separable
+//! masking G1, and sampling of the normals visible from a direction (Heitz 2018, "Sampling the
+//! GGX Distribution of Visible Normals", JCGT 7(4)), as Mitsuba 3's `MicrofacetDistribution`
+//! with `sample_visible = true`.
+use crate::glam::Vec3;
+use crate::sampling::{concentric_disk, PI};
+#[allow(unused_imports)]
+use spirv_std::num_traits::Float;
+
+/// D(m) = α² / (π ((m_z)²(α² − 1) + 1)²) for a unit normal m; 0 below the surface.
+#[inline]
+pub fn ggx_d(alpha: f32, m: Vec3) -> f32 {
+    if m.z <= 0.0 {
+        return 0.0;
+    }
+    let a2 = alpha * alpha;
+    let t = m.z * m.z * (a2 - 1.0) + 1.0;
+    a2 / (PI * t * t)
+}
+
+/// Smith's masking G1(w, m) = 2 w_z / (w_z + √(α² + (1 − α²) w_z²)), 0 when w sees m's back or
+/// lies below the surface.
+#[inline]
+pub fn ggx_g1(alpha: f32, w: Vec3, m: Vec3) -> f32 {
+    if (w.z <= 0.0) | (w.dot(m) <= 0.0) {
+        return 0.0;
+    }
+    let a2 = alpha * alpha;
+    let root = (a2 + (1.0 - a2) * w.z * w.z).sqrt();
+    2.0 * w.z / (w.z + root)
+}
+
+/// A microfacet normal visible from `w` (w_z > 0), with density D_w(m) = G1(w, m)·(w·m)·D(m)/w_z.
+/// The disk point comes from the concentric map, so both devices compute it with the same
+/// polynomials (`trig`).
+#[inline]
+pub fn ggx_sample_visible(alpha: f32, w: Vec3, u1: f32, u2: f32) -> Vec3 {
+    // The view direction in the hemisphere configuration (α stretched to 1).
+    let v = Vec3::new(alpha * w.x, alpha * w.y, w.z).normalize();
+    let len2 = v.x * v.x + v.y * v.y;
+    let t1 = if len2 > 0.0 { Vec3::new(-v.y, v.x, 0.0) * (1.0 / len2.sqrt()) } else { Vec3::X };
+    let t2 = v.cross(t1);
+    let (p1, p2) = concentric_disk(u1, u2);
+    // Warp the disk onto the visible half of the projected hemisphere.
+    let s = 0.5 * (1.0 + v.z);
+    let h = (1.0 - p1 * p1).max(0.0).sqrt();
+    let p2 = (1.0 - s) * h + s * p2;
+    let pz = (1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt();
+    let nh = t1 * p1 + t2 * p2 + v * pz;
+    // Back to the ellipsoid configuration.
+    Vec3::new(alpha * nh.x, alpha * nh.y, nh.z.max(0.0)).normalize()
+}
+
+/// The solid-angle pdf of a reflected direction whose half vector m was drawn by
+/// `ggx_sample_visible` from `w`: D_w(m) / (4 w·m) = G1(w, m)·D(m) / (4 w_z).
+#[inline]
+pub fn ggx_visible_pdf(alpha: f32, w: Vec3, m: Vec3) -> f32 {
+    if w.z <= 0.0 {
+        return 0.0;
+    }
+    ggx_g1(alpha, w, m) * ggx_d(alpha, m) / (4.0 * w.z)
+}

@@ -1,0 +1,95 @@
+//! Materials: BSDFs dispatched on `Material::kind` (a tag, with the material an index into the
+//! material buffer; pbrt-v4's tagged dispatch without pointers), and one-sided area emission.
+//!
+//! Every BSDF works with `n`, the shading normal turned toward the side the ray arrived from,
+//! `wo`, the unit direction back toward where the ray came from, and `wi`, the direction light
+//! arrives from (both pointing away from the surface). `eval` returns the BSDF value without the
+//! cosine and the solid-angle pdf of `sample` choosing `wi`; `sample` returns f·|cos|/pdf as the
+//! weight. A smooth (delta) lobe has no value to evaluate: `eval` gives zero, and `sample`
+//! reports pdf `DELTA_PDF`, which takes the whole MIS weight (`sampling::power_heuristic`).
+//!
+//! When the variant has one material kind only (`features::Variant::only_material`) the kind is
+//! not tested.
+mod conductor;
+mod diffuse;
+mod frame;
+mod microfacet;
+
+pub use conductor::{fresnel_conductor, CONDUCTOR_PRESETS};
+pub use frame::Frame;
+pub use microfacet::{ggx_d, ggx_g1, ggx_sample_visible, ggx_visible_pdf};
+
+use crate::features::{Variant, FEATURE_CONDUCTOR, FEATURE_DIFFUSE};
+use crate::glam::Vec3;
+use crate::layout::{Material, MATERIAL_CONDUCTOR, MATERIAL_DIFFUSE};
+use crate::vecmath::{dot, xyz};
+
+/// The pdf a delta lobe reports: the largest f32, whose square overflows, so that it takes the
+/// whole MIS weight. (Not ∞: naga refuses an infinite constant in a shader.)
+pub const DELTA_PDF: f32 = f32::MAX;
+
+/// A direction sampled from a BSDF with its weight f·|cos|/pdf and its solid-angle pdf
+/// (`DELTA_PDF` for a delta lobe).
+#[derive(Clone, Copy)]
+pub struct BsdfSample {
+    pub wi: Vec3,
+    pub weight: Vec3,
+    pub pdf: f32,
+}
+
+impl BsdfSample {
+    /// No direction: the path ends.
+    pub const NONE: BsdfSample = BsdfSample { wi: Vec3::ZERO, weight: Vec3::ZERO, pdf: 0.0 };
+}
+
+/// Whether `m` is `kind`, or the variant has no other kind.
+#[inline(always)]
+fn is(v: Variant, m: &Material, kind: u32, bit: u32) -> bool {
+    v.only_material(bit) | (v.has(bit) & (m.kind == kind))
+}
+
+/// BSDF value f(wo, wi) (without the cosine) and the pdf of `sample` choosing `wi`.
+#[inline]
+pub fn eval(v: Variant, m: &Material, n: Vec3, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+    if is(v, m, MATERIAL_DIFFUSE, FEATURE_DIFFUSE) {
+        return diffuse::eval(m, n, wi);
+    }
+    if is(v, m, MATERIAL_CONDUCTOR, FEATURE_CONDUCTOR) {
+        return conductor::eval(m, n, wo, wi);
+    }
+    (Vec3::ZERO, 0.0)
+}
+
+/// Samples `wi` for outgoing direction `wo` from uniforms `u1`, `u2`.
+#[inline]
+pub fn sample(v: Variant, m: &Material, n: Vec3, wo: Vec3, u1: f32, u2: f32) -> BsdfSample {
+    if is(v, m, MATERIAL_DIFFUSE, FEATURE_DIFFUSE) {
+        return diffuse::sample(m, n, u1, u2);
+    }
+    if is(v, m, MATERIAL_CONDUCTOR, FEATURE_CONDUCTOR) {
+        return conductor::sample(m, n, wo, u1, u2);
+    }
+    BsdfSample::NONE
+}
+
+/// Whether every lobe of `m` is a delta (a smooth mirror): light sampling cannot hit it.
+#[inline]
+pub fn is_delta(v: Variant, m: &Material) -> bool {
+    is(v, m, MATERIAL_CONDUCTOR, FEATURE_CONDUCTOR) & (m.params.x == 0.0)
+}
+
+/// Radiance leaving an emitter toward direction `-d` (d: the arriving ray's direction):
+/// emission is one-sided, from the counter-clockwise side (`normal` is the geometric one).
+#[inline]
+pub fn emitted(m: &Material, geometric_normal: Vec3, d: Vec3) -> Vec3 {
+    if dot(geometric_normal, d) < 0.0 {
+        xyz(m.emission)
+    } else {
+        Vec3::ZERO
+    }
+}
+
+#[inline]
+pub fn is_emissive(m: &Material) -> bool {
+    (m.emission.x > 0.0) | (m.emission.y > 0.0) | (m.emission.z > 0.0)
+}

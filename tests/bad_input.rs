@@ -244,6 +244,41 @@ fn cases() -> Vec<Case> {
             &["s.toml:2:8", "not supported yet"],
         ),
         toml_case(
+            "unknown metal",
+            &format!("[materials.m]\ntype = \"conductor\"\nmetal = \"Unobtainium\"\n{mesh}"),
+            &["s.toml:", "unknown metal \"Unobtainium\"", "Au, Ag, Cu, Al, Cr"],
+        ),
+        toml_case(
+            "conductor with an albedo",
+            &format!("[materials.m]\ntype = \"conductor\"\nmetal = \"Au\"\nalbedo = [1, 1, 1]\n{mesh}"),
+            &["s.toml:", "not albedo"],
+        ),
+        toml_case(
+            "conductor without eta and k",
+            &format!("[materials.m]\ntype = \"conductor\"\neta = [1, 1, 1]\n{mesh}"),
+            &["s.toml:", "both eta and k"],
+        ),
+        toml_case(
+            "conductor with a metal and eta",
+            &format!("[materials.m]\ntype = \"conductor\"\nmetal = \"Cu\"\neta = [1, 1, 1]\nk = [1, 1, 1]\n{mesh}"),
+            &["s.toml:", "either metal or eta and k"],
+        ),
+        toml_case(
+            "roughness out of range",
+            &format!("[materials.m]\ntype = \"conductor\"\nmetal = \"Al\"\nalpha = 1.5\n{mesh}"),
+            &["s.toml:4:9", "alpha 1.5"],
+        ),
+        toml_case(
+            "conductor keys on a diffuse material",
+            &format!("[materials.m]\nalbedo = [0.5, 0.5, 0.5]\nk = [1, 1, 1]\n{mesh}"),
+            &["s.toml:", "apply to conductors"],
+        ),
+        toml_case(
+            "roughconductor as a type",
+            &format!("[materials.m]\ntype = \"roughconductor\"\n{mesh}"),
+            &["s.toml:2:8", "type = \"conductor\" with alpha"],
+        ),
+        toml_case(
             "unknown material type",
             &format!("[materials.x]\ntype = \"velvet\"\n{mesh}"),
             &["s.toml:2:8", "unknown material type"],

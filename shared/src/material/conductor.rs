@@ -5,7 +5,7 @@ use super::microfacet::{ggx_d, ggx_g1, ggx_sample_visible, ggx_visible_pdf};
 use super::{BsdfSample, Frame, DELTA_PDF};
 use crate::glam::Vec3;
 use crate::layout::Material;
-use crate::vecmath::xyz;
+use crate::vecmath::{dot, normalize, xyz};
 #[allow(unused_imports)]
 use spirv_std::num_traits::Float;
 
@@ -26,17 +26,23 @@ pub const CONDUCTOR_PRESETS: [(&str, [f32; 3], [f32; 3]); 5] = [
 #[inline]
 pub fn fresnel_conductor(cos_i: f32, eta: Vec3, k: Vec3) -> Vec3 {
     let c = cos_i.clamp(0.0, 1.0);
-    let cos2 = Vec3::splat(c * c);
-    let sin2 = Vec3::splat(1.0 - c * c);
+    Vec3::new(fresnel_channel(c, eta.x, k.x), fresnel_channel(c, eta.y, k.y), fresnel_channel(c, eta.z, k.z))
+}
+
+/// One channel of `fresnel_conductor`, in scalar operations (what both devices round alike).
+#[inline]
+fn fresnel_channel(c: f32, eta: f32, k: f32) -> f32 {
+    let cos2 = c * c;
+    let sin2 = 1.0 - cos2;
     let eta2 = eta * eta;
     let k2 = k * k;
-    let t0 = eta2 - k2 - sin2;
-    let a2b2 = (t0 * t0 + 4.0 * eta2 * k2).max(Vec3::ZERO);
-    let a2b2 = Vec3::new(a2b2.x.sqrt(), a2b2.y.sqrt(), a2b2.z.sqrt());
+    // η² − κ² − sin²θ, written without subtracting `sin2 = 1 − cos2`: the SPIR-V optimiser folds
+    // x − (1 − y) into (x − 1) + y, which rounds differently from the CPU.
+    let t0 = (eta2 - k2 + cos2) - 1.0;
+    let a2b2 = (t0 * t0 + 4.0 * eta2 * k2).max(0.0).sqrt();
     let t1 = a2b2 + cos2;
-    let a2 = ((a2b2 + t0) * 0.5).max(Vec3::ZERO);
-    let a = Vec3::new(a2.x.sqrt(), a2.y.sqrt(), a2.z.sqrt());
-    let t2 = a * (2.0 * c);
+    let a = ((a2b2 + t0) * 0.5).max(0.0).sqrt();
+    let t2 = 2.0 * c * a;
     let rs = (t1 - t2) / (t1 + t2);
     let t3 = cos2 * a2b2 + sin2 * sin2;
     let t4 = t2 * sin2;
@@ -57,9 +63,9 @@ pub fn eval(m: &Material, n: Vec3, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
     if (alpha == 0.0) | (o.z <= 0.0) | (i.z <= 0.0) {
         return (Vec3::ZERO, 0.0);
     }
-    let h = (o + i).normalize();
+    let h = normalize(o + i);
     let value =
-        fresnel(m, o.dot(h)) * (ggx_d(alpha, h) * ggx_g1(alpha, o, h) * ggx_g1(alpha, i, h) / (4.0 * o.z * i.z));
+        fresnel(m, dot(o, h)) * (ggx_d(alpha, h) * ggx_g1(alpha, o, h) * ggx_g1(alpha, i, h) / (4.0 * o.z * i.z));
     (value, ggx_visible_pdf(alpha, o, h))
 }
 
@@ -76,14 +82,14 @@ pub fn sample(m: &Material, n: Vec3, wo: Vec3, u1: f32, u2: f32) -> BsdfSample {
         return BsdfSample { wi: f.to_world(i), weight: fresnel(m, o.z), pdf: DELTA_PDF };
     }
     let h = ggx_sample_visible(alpha, o, u1, u2);
-    let i = h * (2.0 * o.dot(h)) - o;
+    let i = h * (2.0 * dot(o, h)) - o;
     if i.z <= 0.0 {
         return BsdfSample::NONE;
     }
     // f·cos/pdf = F·D·G1(o)·G1(i)/(4 o_z) ÷ G1(o)·D/(4 o_z) = F·G1(i).
     BsdfSample {
         wi: f.to_world(i),
-        weight: fresnel(m, o.dot(h)) * ggx_g1(alpha, i, h),
+        weight: fresnel(m, dot(o, h)) * ggx_g1(alpha, i, h),
         pdf: ggx_visible_pdf(alpha, o, h),
     }
 }

@@ -5,6 +5,7 @@
 //! with `sample_visible = true`.
 use crate::glam::Vec3;
 use crate::sampling::{concentric_disk, PI};
+use crate::vecmath::{cross, dot, normalize};
 #[allow(unused_imports)]
 use spirv_std::num_traits::Float;
 
@@ -23,7 +24,7 @@ pub fn ggx_d(alpha: f32, m: Vec3) -> f32 {
 /// lies below the surface.
 #[inline]
 pub fn ggx_g1(alpha: f32, w: Vec3, m: Vec3) -> f32 {
-    if (w.z <= 0.0) | (w.dot(m) <= 0.0) {
+    if (w.z <= 0.0) | (dot(w, m) <= 0.0) {
         return 0.0;
     }
     let a2 = alpha * alpha;
@@ -37,19 +38,20 @@ pub fn ggx_g1(alpha: f32, w: Vec3, m: Vec3) -> f32 {
 #[inline]
 pub fn ggx_sample_visible(alpha: f32, w: Vec3, u1: f32, u2: f32) -> Vec3 {
     // The view direction in the hemisphere configuration (α stretched to 1).
-    let v = Vec3::new(alpha * w.x, alpha * w.y, w.z).normalize();
+    let v = normalize(Vec3::new(alpha * w.x, alpha * w.y, w.z));
     let len2 = v.x * v.x + v.y * v.y;
     let t1 = if len2 > 0.0 { Vec3::new(-v.y, v.x, 0.0) * (1.0 / len2.sqrt()) } else { Vec3::X };
-    let t2 = v.cross(t1);
+    let t2 = cross(v, t1);
     let (p1, p2) = concentric_disk(u1, u2);
-    // Warp the disk onto the visible half of the projected hemisphere.
-    let s = 0.5 * (1.0 + v.z);
+    // Warp the disk onto the visible half of the projected hemisphere, with s and 1 − s written
+    // out: the SPIR-V optimiser folds 1 − 0.5·(1 + z) into 0.5 − 0.5·z, which rounds differently.
+    let (s, one_minus_s) = (0.5 + 0.5 * v.z, 0.5 - 0.5 * v.z);
     let h = (1.0 - p1 * p1).max(0.0).sqrt();
-    let p2 = (1.0 - s) * h + s * p2;
+    let p2 = one_minus_s * h + s * p2;
     let pz = (1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt();
     let nh = t1 * p1 + t2 * p2 + v * pz;
     // Back to the ellipsoid configuration.
-    Vec3::new(alpha * nh.x, alpha * nh.y, nh.z.max(0.0)).normalize()
+    normalize(Vec3::new(alpha * nh.x, alpha * nh.y, nh.z.max(0.0)))
 }
 
 /// The solid-angle pdf of a reflected direction whose half vector m was drawn by

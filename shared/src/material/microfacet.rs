@@ -9,26 +9,30 @@ use crate::vecmath::{cross, dot, normalize};
 #[allow(unused_imports)]
 use spirv_std::num_traits::Float;
 
-/// D(m) = α² / (π ((m_z)²(α² − 1) + 1)²) for a unit normal m; 0 below the surface.
+/// D(m) = α² / (π (α² m_z² + m_x² + m_y²)²) for a unit normal m (the usual
+/// (m_z²(α² − 1) + 1)² with 1 − m_z² written as m_x² + m_y²: a shader compiler turns
+/// 1 + x·(α² − 1) into a linear interpolation, which rounds differently from the CPU); 0 below
+/// the surface.
 #[inline]
 pub fn ggx_d(alpha: f32, m: Vec3) -> f32 {
     if m.z <= 0.0 {
         return 0.0;
     }
     let a2 = alpha * alpha;
-    let t = m.z * m.z * (a2 - 1.0) + 1.0;
+    let t = a2 * (m.z * m.z) + (m.x * m.x + m.y * m.y);
     a2 / (PI * t * t)
 }
 
-/// Smith's masking G1(w, m) = 2 w_z / (w_z + √(α² + (1 − α²) w_z²)), 0 when w sees m's back or
-/// lies below the surface.
+/// Smith's masking G1(w, m) = 2 w_z / (w_z + √(α²(w_x² + w_y²) + w_z²)) for a unit w (the
+/// usual √(α² + (1 − α²) w_z²), written without the interpolation a shader compiler would
+/// rewrite), 0 when w sees m's back or lies below the surface.
 #[inline]
 pub fn ggx_g1(alpha: f32, w: Vec3, m: Vec3) -> f32 {
     if (w.z <= 0.0) | (dot(w, m) <= 0.0) {
         return 0.0;
     }
     let a2 = alpha * alpha;
-    let root = (a2 + (1.0 - a2) * w.z * w.z).sqrt();
+    let root = (a2 * (w.x * w.x + w.y * w.y) + w.z * w.z).sqrt();
     2.0 * w.z / (w.z + root)
 }
 

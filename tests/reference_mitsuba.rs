@@ -40,8 +40,8 @@ fn read(name: &str) -> LinearImage {
 
 /// Mean and unbiased variance over seeds of kdtrace's image, per pixel channel; with
 /// `adaptive`, of adaptive renders (each seed's image is still one independent estimate).
-fn kdtrace_seed_statistics(adaptive: Option<Adaptive>) -> (LinearImage, LinearImage) {
-    let loaded = kdtrace::load(&root().join("scenes/cornell-box.obj"), BuildSettings::default()).unwrap();
+fn kdtrace_seed_statistics(scene: &str, adaptive: Option<Adaptive>) -> (LinearImage, LinearImage) {
+    let loaded = kdtrace::load(&root().join(scene), BuildSettings::default()).unwrap();
     let camera = Camera {
         eye: DVec3::new(0.278, 0.273, 0.8),
         target: DVec3::new(0.278, 0.273, 0.0),
@@ -88,7 +88,7 @@ fn cornell_box_matches_mitsuba_per_pixel_and_in_mean() {
     let reference = read("cornell-box-mitsuba-32.exr");
     let stderr = read("cornell-box-mitsuba-32-stderr.exr");
     assert_eq!((reference.width, reference.height), (SIZE, SIZE));
-    let (mean, var) = kdtrace_seed_statistics(None);
+    let (mean, var) = kdtrace_seed_statistics("scenes/cornell-box.obj", None);
 
     let (_, _, _, ratio, _) = pointwise(&reference, &mean).unwrap();
     let t = test_against(&reference, &stderr, &mean, &var);
@@ -119,10 +119,34 @@ fn adaptive_pilot_mode_matches_mitsuba_per_pixel() {
     let reference = read("cornell-box-mitsuba-32.exr");
     let stderr = read("cornell-box-mitsuba-32-stderr.exr");
     let adaptive = Adaptive { threshold: 0.05, min_spp: 16, mode: AdaptiveMode::Pilot };
-    let (mean, var) = kdtrace_seed_statistics(Some(adaptive));
+    let (mean, var) = kdtrace_seed_statistics("scenes/cornell-box.obj", Some(adaptive));
     let (_, _, _, ratio, _) = pointwise(&reference, &mean).unwrap();
     let t = test_against(&reference, &stderr, &mean, &var);
     eprintln!("adaptive (pilot): mean ratio kdtrace/Mitsuba {ratio:.5}; per-pixel test: {t:?}");
     assert!((ratio - 1.0).abs() < 0.01, "image mean ratio {ratio}");
     assert!(t.pass && t.tests == 3 * (SIZE * SIZE) as u64, "{t:?}");
+}
+
+/// A rough conductor against Mitsuba's `roughconductor` (GGX α 0.2, gold): the Cornell box with
+/// its tall block in gold (tests/data/cornell-metal, reference by
+/// `bench/peers/make_test_reference.sh metal`), the same per-pixel test and mean.
+#[test]
+fn rough_gold_matches_mitsuba_per_pixel() {
+    let reference = read("cornell-metal/cornell-metal-mitsuba-32.exr");
+    let stderr = read("cornell-metal/cornell-metal-mitsuba-32-stderr.exr");
+    let (mean, var) = kdtrace_seed_statistics("tests/data/cornell-metal/cornell-metal.toml", None);
+    let (_, _, _, ratio, _) = pointwise(&reference, &mean).unwrap();
+    let t = test_against(&reference, &stderr, &mean, &var);
+    eprintln!("rough gold: mean ratio kdtrace/Mitsuba {ratio:.5}; per-pixel test: {t:?}");
+    assert!((ratio - 1.0).abs() < 0.01, "image mean ratio {ratio}");
+    assert!(t.pass && t.tests == 3 * (SIZE * SIZE) as u64, "{t:?}");
+    // The tall block's pixels differ from the diffuse box's: the test sees the metal.
+    let diffuse = read("cornell-box-mitsuba-32.exr");
+    let changed = reference
+        .pixels
+        .iter()
+        .zip(&diffuse.pixels)
+        .filter(|(a, b)| (a[1] - b[1]).abs() > 0.05 * b[1].max(0.01))
+        .count();
+    assert!(changed > 40, "only {changed} pixels differ from the diffuse box");
 }

@@ -1,4 +1,7 @@
-"""Makes tests/data/cornell-box-mitsuba-32.exr and its standard-error image for tests/reference_mitsuba.rs.
+"""Makes tests/data/cornell-box-mitsuba-32.exr and its standard-error image for tests/reference_mitsuba.rs
+(and, with `metal`, tests/data/cornell-metal/cornell-metal-mitsuba-32.exr: the box with its tall
+block a rough gold conductor, Mitsuba's `roughconductor` with GGX α 0.2, visible-normal sampling
+and kdtrace's Au η and κ, two-sided as kdtrace's materials are).
 
 Mitsuba 3.9 `llvm_ad_rgb` renders our Cornell box (scenes/cornell-box.obj) as render_mitsuba.py
 does: 32x32 pixels, 6 bounces (max_depth 8), Cornell's camera (eye 0.278,0.273,0.8, target
@@ -32,25 +35,38 @@ SPP_PER_CHUNK = 8192
 SIZE = 32
 
 
+# kdtrace's "Au" (shared::material::CONDUCTOR_PRESETS).
+AU_ETA = [0.143119, 0.374957, 1.442479]
+AU_K = [3.983160, 2.385721, 1.603215]
+
+
 def main():
     mi.set_variant("llvm_ad_rgb")
+    metal = sys.argv[1:] == ["metal"]
+    obj = os.path.join(ROOT, "tests", "data", "cornell-metal", "cornell-metal.obj") if metal else os.path.join(ROOT, "scenes", "cornell-box.obj")
+    bsdfs = {}
+    if metal:
+        gold = {"type": "roughconductor", "distribution": "ggx", "alpha": 0.2, "sample_visible": True,
+                "eta": {"type": "rgb", "value": AU_ETA}, "k": {"type": "rgb", "value": AU_K}}
+        bsdfs["gold"] = {"type": "twosided", "material": gold}
     args = SimpleNamespace(
-        scene=os.path.join(ROOT, "scenes", "cornell-box.obj"), width=SIZE, height=SIZE, bounces=6,
+        scene=obj, width=SIZE, height=SIZE, bounces=6, sampler="independent",
         eye=(0.278, 0.273, 0.8), target=(0.278, 0.273, 0.0), up=(0.0, 1.0, 0.0), fov=39.3076,
     )
     t0 = time.perf_counter()
     chunks = []
     with tempfile.TemporaryDirectory() as tmp:
-        scene = mi.load_dict(render_mitsuba.scene_dict(args, tmp))
+        scene = mi.load_dict(render_mitsuba.scene_dict(args, tmp, bsdfs))
         for c in range(CHUNKS):
             img = mi.render(scene, spp=SPP_PER_CHUNK, seed=1000 + c)
             chunks.append(np.asarray(img, dtype=np.float64)[:, :, :3])
     chunks = np.stack(chunks)
     mean = chunks.mean(axis=0)
     stderr = np.sqrt(chunks.var(axis=0, ddof=1) / CHUNKS)
-    out = os.path.join(ROOT, "tests", "data")
+    out = os.path.join(ROOT, "tests", "data", "cornell-metal") if metal else os.path.join(ROOT, "tests", "data")
+    stem = "cornell-metal-mitsuba-32" if metal else "cornell-box-mitsuba-32"
     os.makedirs(out, exist_ok=True)
-    for name, a in [("cornell-box-mitsuba-32.exr", mean), ("cornell-box-mitsuba-32-stderr.exr", stderr)]:
+    for name, a in [(f"{stem}.exr", mean), (f"{stem}-stderr.exr", stderr)]:
         mi.util.write_bitmap(os.path.join(out, name), mi.Bitmap(a.astype(np.float32), pixel_format=mi.Bitmap.PixelFormat.RGB), write_async=False)
     info = {"renderer": f"mitsuba {mi.__version__} llvm_ad_rgb", "chunks": CHUNKS, "spp_per_chunk": SPP_PER_CHUNK,
             "spp": CHUNKS * SPP_PER_CHUNK, "seconds": time.perf_counter() - t0, "mean": float(mean.mean()),

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# Regenerates tests/data/cornell-box-mitsuba-32{,-stderr}.exr (see make_test_reference.py) with the
-# venv and LLVM that bench/peers.sh sets up. About 2-3 minutes on 2 cores.
+# Regenerates tests/data/cornell-box-mitsuba-32{,-stderr}.exr, or with `metal`
+# tests/data/cornell-metal/cornell-metal-mitsuba-32{,-stderr}.exr (see make_test_reference.py), with
+# the venv and LLVM that bench/peers.sh sets up. About 2-4 minutes on 2 cores.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 export DRJIT_LIBLLVM_PATH=/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1
-exec bench/.venv/bin/python bench/peers/make_test_reference.py
+exec bench/.venv/bin/python bench/peers/make_test_reference.py "$@"

@@ -45,7 +45,10 @@ def write_ply(path, verts, tris):
         f.write(faces.tobytes())
 
 
-def scene_dict(args, tmp):
+def scene_dict(args, tmp, bsdfs=None):
+    """The scene as a Mitsuba dict: every OBJ part a two-sided diffuse of its `Kd` (and an area
+    emitter of its `Ke`), except the parts named in `bsdfs`, which get that Mitsuba BSDF dict."""
+    bsdfs = bsdfs or {}
     d = {
         "type": "scene",
         "integrator": {"type": "path", "max_depth": args.bounces + 2, "rr_depth": 5, "hide_emitters": False},
@@ -73,7 +76,7 @@ def scene_dict(args, tmp):
             "type": "ply",
             "filename": ply,
             "face_normals": True,
-            "bsdf": {"type": "twosided", "material": {"type": "diffuse", "reflectance": {"type": "rgb", "value": list(part["Kd"])}}},
+            "bsdf": bsdfs.get(name, {"type": "twosided", "material": {"type": "diffuse", "reflectance": {"type": "rgb", "value": list(part["Kd"])}}}),
         }
         if max(part["Ke"]) > 0:
             shape["emitter"] = {"type": "area", "radiance": {"type": "rgb", "value": list(part["Ke"])}}

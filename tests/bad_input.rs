@@ -240,7 +240,7 @@ fn cases() -> Vec<Case> {
         ),
         toml_case(
             "reserved material type",
-            &format!("[materials.glass]\ntype = \"dielectric\"\n{mesh}"),
+            &format!("[materials.paint]\ntype = \"plastic\"\n{mesh}"),
             &["s.toml:2:8", "not supported yet"],
         ),
         toml_case(
@@ -277,6 +277,21 @@ fn cases() -> Vec<Case> {
             "roughconductor as a type",
             &format!("[materials.m]\ntype = \"roughconductor\"\n{mesh}"),
             &["s.toml:2:8", "type = \"conductor\" with alpha"],
+        ),
+        toml_case(
+            "rough dielectric",
+            &format!("[materials.g]\ntype = \"dielectric\"\nalpha = 0.1\n{mesh}"),
+            &["s.toml:", "rough dielectrics are not supported yet"],
+        ),
+        toml_case(
+            "index of refraction out of range",
+            &format!("[materials.g]\ntype = \"dielectric\"\nior = 0\n{mesh}"),
+            &["s.toml:3:7", "index of refraction 0"],
+        ),
+        toml_case(
+            "ior on a conductor",
+            &format!("[materials.g]\ntype = \"conductor\"\nmetal = \"Au\"\nior = 1.5\n{mesh}"),
+            &["s.toml:", "ior applies to dielectrics"],
         ),
         toml_case(
             "unknown material type",

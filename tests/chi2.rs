@@ -182,7 +182,7 @@ fn lambertian_sample_directions_follow_its_pdf_about_any_normal() {
     for (k, &n) in normals.iter().enumerate() {
         let mut worst_pdf_mismatch = 0f64;
         let mut draw = |u1: f32, u2: f32| {
-            let s = sample(Variant::GENERIC_SPEC, &m, n, n, u1, u2);
+            let s = sample(Variant::GENERIC_SPEC, &m, n, n, true, u1, u2);
             let (f, pdf) = eval(Variant::GENERIC_SPEC, &m, n, n, s.wi);
             if s.pdf > 1e-3 {
                 worst_pdf_mismatch = worst_pdf_mismatch.max((s.pdf as f64 / pdf as f64 - 1.0).abs());
@@ -204,8 +204,11 @@ fn lambertian_sample_directions_follow_its_pdf_about_any_normal() {
                 0.0
             }
         };
-        let wrong =
-            spherical_chi2(&mut |u1, u2| sample(Variant::GENERIC_SPEC, &m, n, n, u1, u2).wi, &wrong_pdf, 10 + k as u64);
+        let wrong = spherical_chi2(
+            &mut |u1, u2| sample(Variant::GENERIC_SPEC, &m, n, n, true, u1, u2).wi,
+            &wrong_pdf,
+            10 + k as u64,
+        );
         assert_pass_and_wrong_rejected(&format!("Lambertian about {n:?}"), good, wrong);
     }
 }
@@ -252,7 +255,7 @@ fn rough_conductor_samples_follow_its_pdf() {
             let m = gold(alpha);
             let mut worst = 0f64;
             let mut draw = |u1: f32, u2: f32| {
-                let s = sample(v, &m, n, wo, u1, u2);
+                let s = sample(v, &m, n, wo, true, u1, u2);
                 if s.pdf <= 0.0 {
                     return None;
                 }
@@ -271,7 +274,7 @@ fn rough_conductor_samples_follow_its_pdf() {
             let wide = gold(alpha * 1.15);
             let wrong_pdf = |w: Vec3| eval(v, &wide, n, wo, w.normalize()).1 as f64;
             let wrong = lossy_spherical_chi2(
-                &mut |u1, u2| Some(sample(v, &m, n, wo, u1, u2)).filter(|s| s.pdf > 0.0).map(|s| s.wi),
+                &mut |u1, u2| Some(sample(v, &m, n, wo, true, u1, u2)).filter(|s| s.pdf > 0.0).map(|s| s.wi),
                 &wrong_pdf,
                 100 + k,
             );

@@ -13,7 +13,7 @@ use kdtrace::{
     load,
     render::{cpu, features, gpu, Compiled, Rendered},
     scene::{
-        conductor, diffuse,
+        conductor, dielectric, diffuse,
         procedural::{box_triangles, quad},
         Scene,
     },
@@ -21,8 +21,8 @@ use kdtrace::{
 };
 use paths::mesh;
 use shared::features::{
-    FEATURES_ALL, FEATURE_CONDUCTOR, FEATURE_DIFFUSE, FEATURE_EMITTERS, FEATURE_ENVIRONMENT, FEATURE_INDIRECT,
-    FEATURE_MANY_EMITTERS,
+    FEATURES_ALL, FEATURE_CONDUCTOR, FEATURE_DIELECTRIC, FEATURE_DIFFUSE, FEATURE_EMITTERS, FEATURE_ENVIRONMENT,
+    FEATURE_INDIRECT, FEATURE_MANY_EMITTERS,
 };
 use shared::glam::{DVec3, Vec3, Vec4};
 use shared::layout::Material;
@@ -78,6 +78,16 @@ fn metals(alpha: f32) -> Compiled {
     scene.materials[1] = conductor(Vec3::from(silver.1), Vec3::from(silver.2), alpha, Vec3::splat(20.0));
     scene.materials.push(conductor(Vec3::from(gold.1), Vec3::from(gold.2), alpha, Vec3::ZERO));
     // The block's twelve triangles follow the floor's two.
+    for t in &mut scene.info[2..14] {
+        t.material = 2;
+    }
+    compile(scene, BuildSettings::default())
+}
+
+/// `lamp_and_block(true)` with a glass block (index 1.5) under a sky.
+fn glass() -> Compiled {
+    let mut scene = lamp_and_block(true).scene;
+    scene.materials.push(dielectric(1.5, Vec3::ZERO));
     for t in &mut scene.info[2..14] {
         t.material = 2;
     }
@@ -165,6 +175,12 @@ fn every_variant_renders_the_generic_image() {
             settings(outside.0, outside.1, 0.0, 3),
             FEATURE_EMITTERS | FEATURE_CONDUCTOR | FEATURE_INDIRECT,
         ),
+        (
+            "glass",
+            glass(),
+            settings(outside.0, outside.1, 0.3, 4),
+            FEATURE_EMITTERS | FEATURE_ENVIRONMENT | FEATURE_DIFFUSE | FEATURE_DIELECTRIC | FEATURE_INDIRECT,
+        ),
     ];
     // Every bit is left out somewhere.
     let covered = cases.iter().fold(0, |acc, c| acc | (FEATURES_ALL & !c.3));
@@ -184,7 +200,7 @@ fn every_variant_renders_the_generic_image() {
     }
     // The scenes with light are not black, and the one without is.
     let lit = |i: usize| cpu::render(&cases[i].1, &cases[i].2, &no_progress).unwrap().sum.iter().any(|p| p.x > 0.0);
-    assert!(lit(0) && lit(2) && lit(3) && lit(5) && lit(7) && lit(8));
+    assert!(lit(0) && lit(2) && lit(3) && lit(5) && lit(7) && lit(8) && lit(9));
     assert!(!lit(6));
 }
 

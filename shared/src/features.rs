@@ -21,10 +21,12 @@ pub const FEATURE_DIFFUSE: u32 = 1 << 3;
 pub const FEATURE_INDIRECT: u32 = 1 << 4;
 /// Conductors (`material::conductor`) are present.
 pub const FEATURE_CONDUCTOR: u32 = 1 << 5;
+/// Dielectrics (`material::dielectric`) are present.
+pub const FEATURE_DIELECTRIC: u32 = 1 << 6;
 /// Every feature: the generic code, which serves any scene.
-pub const FEATURES_ALL: u32 = (1 << 6) - 1;
+pub const FEATURES_ALL: u32 = (1 << 7) - 1;
 /// The material-kind bits: when exactly one is set, material dispatch is skipped.
-pub const FEATURE_MATERIALS: u32 = FEATURE_DIFFUSE | FEATURE_CONDUCTOR;
+pub const FEATURE_MATERIALS: u32 = FEATURE_DIFFUSE | FEATURE_CONDUCTOR | FEATURE_DIELECTRIC;
 
 /// A bounce limit or roulette start given by specialisation constant: this value (the kernel's
 /// default) means "read it from `RenderParams`".

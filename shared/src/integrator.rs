@@ -13,7 +13,7 @@ use crate::features::{Variant, FEATURE_EMITTERS, FEATURE_ENVIRONMENT, FEATURE_IN
 use crate::glam::{Vec3, Vec4};
 use crate::kdtree::Hit;
 use crate::layout::{RenderParams, AOV_COST, NO_HIT, NO_LIGHT};
-use crate::material::{emitted, eval, is_delta, sample as sample_bsdf};
+use crate::material::{emitted, eval, is_delta, sample as sample_bsdf, transmits};
 use crate::numerics::{offset_ray_origin, sanitize_radiance};
 use crate::raycast::{any, closest};
 use crate::rng::Sampler;
@@ -139,7 +139,8 @@ fn shade_vertex(
     }
 
     // Shade on the side the ray arrived from: the materials are two-sided.
-    let ns = if dot(ng, dir) < 0.0 { n } else { -n };
+    let front = dot(ng, dir) < 0.0;
+    let ns = if front { n } else { -n };
     let spawn = offset_ray_origin(pos, surface.error, ns);
     let wo = -normalize(dir);
 
@@ -175,7 +176,7 @@ fn shade_vertex(
         }
     }
 
-    let bs = sample_bsdf(v, mat, ns, wo, ub1, ub2);
+    let bs = sample_bsdf(v, mat, ns, wo, front, ub1, ub2);
     if bs.pdf <= 0.0 {
         return false;
     }
@@ -189,7 +190,9 @@ fn shade_vertex(
         }
         path.beta /= survive;
     }
-    path.origin = spawn;
+    // A refracted ray leaves from the far side of the surface.
+    path.origin =
+        if transmits(v, mat) & (dot(bs.wi, ns) < 0.0) { offset_ray_origin(pos, surface.error, -ns) } else { spawn };
     path.dir = bs.wi;
     true
 }

@@ -80,6 +80,9 @@ pub const MATERIAL_DIFFUSE: u32 = 0;
 /// A conductor: complex index of refraction `eta` + i·`k` per channel, smooth (`params.x`, the
 /// GGX α, is 0) or rough.
 pub const MATERIAL_CONDUCTOR: u32 = 1;
+/// A smooth dielectric of index of refraction `params.y` inside (the counter-clockwise side is
+/// outside, index 1).
+pub const MATERIAL_DIELECTRIC: u32 = 2;
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -91,7 +94,7 @@ pub struct Material {
     pub albedo: Vec4,
     /// Emitted radiance from the front (counter-clockwise) side (MTL `Ke`), linear RGB in `xyz`.
     pub emission: Vec4,
-    /// `x`: GGX roughness α (0: smooth); the rest reserved for IOR and the like.
+    /// `x`: GGX roughness α (0: smooth); `y`: a dielectric's index of refraction inside.
     pub params: Vec4,
     /// Conductor: the real part of the complex index of refraction per channel, in `xyz`.
     pub eta: Vec4,

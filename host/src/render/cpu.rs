@@ -5,7 +5,7 @@ use crate::render::{adaptive, Compiled, Progress, Rendered};
 use crate::settings::RenderSettings;
 use anyhow::Result;
 use rayon::prelude::*;
-use shared::features::{FEATURES_ALL, FEATURE_CONDUCTOR, FEATURE_DIFFUSE, FEATURE_INDIRECT, FEATURE_MATERIALS};
+use shared::features::{FEATURES_ALL, FEATURE_DIFFUSE, FEATURE_INDIRECT, FEATURE_MATERIALS};
 use shared::glam::Vec4;
 use shared::integrator::render_samples_for;
 use shared::layout::{RenderParams, NO_HIT};
@@ -35,7 +35,7 @@ macro_rules! variants {
 }
 variants!(
     8 9 10 11 12 13 14 15 24 25 26 27 28 29 30 31
-    40 41 42 43 44 45 46 47 56 57 58 59 60 61 62 63
+    104 105 106 107 108 109 110 111 120 121 122 123 124 125 126 127
 );
 
 /// The feature bits the CPU compiles a variant for, covering `bits`: the bits outside the
@@ -56,7 +56,7 @@ pub fn cpu_variant_bits(bits: u32) -> u32 {
 fn variant_index(bits: u32) -> usize {
     let b = cpu_variant_bits(bits);
     let low = (b & 0b111) | ((b & FEATURE_INDIRECT) >> 1);
-    (low + if b & FEATURE_CONDUCTOR != 0 { 16 } else { 0 }) as usize
+    (low + if b & FEATURE_MATERIALS != FEATURE_DIFFUSE { 16 } else { 0 }) as usize
 }
 
 /// The CPU's variant of the integrator for feature bits `bits` (`cpu_variant_bits`).

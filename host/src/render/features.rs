@@ -5,10 +5,10 @@ use crate::render::Compiled;
 use crate::settings::RenderSettings;
 use serde::Serialize;
 use shared::features::{
-    FEATURES_ALL, FEATURE_CONDUCTOR, FEATURE_DIFFUSE, FEATURE_EMITTERS, FEATURE_ENVIRONMENT, FEATURE_INDIRECT,
-    FEATURE_MANY_EMITTERS,
+    FEATURES_ALL, FEATURE_CONDUCTOR, FEATURE_DIELECTRIC, FEATURE_DIFFUSE, FEATURE_EMITTERS, FEATURE_ENVIRONMENT,
+    FEATURE_INDIRECT, FEATURE_MANY_EMITTERS,
 };
-use shared::layout::{MATERIAL_CONDUCTOR, MATERIAL_DIFFUSE};
+use shared::layout::{MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, MATERIAL_DIFFUSE};
 use shared::vecmath::{max_component, xyz};
 
 /// The feature set and the facts behind it.
@@ -38,13 +38,14 @@ pub struct Features {
 }
 
 /// Each bit's name, as `render --json` and the tests print them.
-pub const FEATURE_NAMES: [(u32, &str); 6] = [
+pub const FEATURE_NAMES: [(u32, &str); 7] = [
     (FEATURE_EMITTERS, "emitters"),
     (FEATURE_MANY_EMITTERS, "many_emitters"),
     (FEATURE_ENVIRONMENT, "environment"),
     (FEATURE_DIFFUSE, "diffuse"),
     (FEATURE_INDIRECT, "indirect"),
     (FEATURE_CONDUCTOR, "conductor"),
+    (FEATURE_DIELECTRIC, "dielectric"),
 ];
 
 /// The feature bits of the variant that renders `c` with `s`: the scene's set, or every bit for
@@ -79,8 +80,12 @@ pub fn analyse(c: &Compiled, s: &RenderSettings) -> Features {
     let used: Vec<_> = scene.materials.iter().zip(&used).filter(|(_, &u)| u).map(|(m, _)| m).collect();
     let diffuse = used.iter().any(|m| m.kind == MATERIAL_DIFFUSE);
     let conductor = used.iter().any(|m| m.kind == MATERIAL_CONDUCTOR);
-    // A conductor always reflects (its Fresnel reflectance is positive at every angle).
-    let reflects = conductor || used.iter().any(|m| m.kind == MATERIAL_DIFFUSE && max_component(xyz(m.albedo)) > 0.0);
+    let dielectric = used.iter().any(|m| m.kind == MATERIAL_DIELECTRIC);
+    // A conductor always reflects (its Fresnel reflectance is positive at every angle), and a
+    // dielectric reflects or lets light through.
+    let reflects = conductor
+        || dielectric
+        || used.iter().any(|m| m.kind == MATERIAL_DIFFUSE && max_component(xyz(m.albedo)) > 0.0);
     // (Every emissive triangle is in the light table: `emitters` counts them all.) A render
     // without indirect bounces still follows the BSDF sample to an emitter (MIS), so the bounce
     // limit does not enter.
@@ -93,6 +98,7 @@ pub fn analyse(c: &Compiled, s: &RenderSettings) -> Features {
         (diffuse, FEATURE_DIFFUSE),
         (indirect, FEATURE_INDIRECT),
         (conductor, FEATURE_CONDUCTOR),
+        (dielectric, FEATURE_DIELECTRIC),
     ] {
         if on {
             bits |= bit;
@@ -103,7 +109,11 @@ pub fn analyse(c: &Compiled, s: &RenderSettings) -> Features {
         emitters,
         emitter_power,
         environment: if environment { "constant" } else { "black" },
-        materials: [(diffuse, "diffuse"), (conductor, "conductor")].iter().filter(|m| m.0).map(|m| m.1).collect(),
+        materials: [(diffuse, "diffuse"), (conductor, "conductor"), (dielectric, "dielectric")]
+            .iter()
+            .filter(|m| m.0)
+            .map(|m| m.1)
+            .collect(),
         textures: false,
         alpha_masks: false,
         bounces: s.max_bounces,

@@ -73,6 +73,7 @@ pub fn make_rays(c: &Compiled, s: &RenderSettings, kind: RayKind, traversal: Tra
                 &c.scene.materials[c.scene.info[hit.triangle as usize].material as usize],
                 n,
                 -d.normalize(),
+                true,
                 u1,
                 u2,
             )

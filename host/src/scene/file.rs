@@ -10,7 +10,7 @@
 use crate::files::Files;
 use crate::scene::obj::{self, DEFAULT_ALBEDO, MAX_COORDINATE};
 use crate::scene::transform::Placement;
-use crate::scene::{conductor, diffuse, WorldScene};
+use crate::scene::{conductor, dielectric, diffuse, WorldScene};
 use crate::settings::scene::SceneSettings;
 use crate::settings::{SamplerKind, MAX_BOUNCES, MAX_SIDE, MAX_SPP};
 use anyhow::{anyhow, bail, Context, Result};
@@ -100,6 +100,9 @@ pub struct MaterialSection {
     /// Conductor: GGX roughness α as Mitsuba's `alpha` (0 or absent: smooth).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub alpha: Option<Alpha>,
+    /// Dielectric: the index of refraction inside (outside 1); default 1.5.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ior: Option<Ior>,
 }
 
 /// A material table as written, before the keys are checked against its type.
@@ -114,15 +117,27 @@ pub struct RawMaterial {
     eta: Option<Color>,
     k: Option<Color>,
     alpha: Option<Alpha>,
+    ior: Option<Ior>,
 }
 
 impl TryFrom<RawMaterial> for MaterialSection {
     type Error = String;
     fn try_from(r: RawMaterial) -> Result<Self, String> {
-        let conductor_keys = r.metal.is_some() || r.eta.is_some() || r.k.is_some() || r.alpha.is_some();
+        let conductor_keys = r.metal.is_some() || r.eta.is_some() || r.k.is_some();
+        if r.ior.is_some() && r.kind != MaterialKind::Dielectric {
+            return Err("ior applies to dielectrics (type = \"dielectric\")".into());
+        }
         match r.kind {
-            MaterialKind::Diffuse if conductor_keys => {
+            MaterialKind::Diffuse if conductor_keys || r.alpha.is_some() => {
                 return Err("metal, eta, k and alpha apply to conductors (type = \"conductor\")".into());
+            }
+            MaterialKind::Dielectric => {
+                if conductor_keys || r.albedo.is_some() {
+                    return Err("a dielectric takes ior (and emission), not albedo, metal, eta or k".into());
+                }
+                if r.alpha.is_some_and(|a| a.0 > 0.0) {
+                    return Err("rough dielectrics are not supported yet: alpha must be 0 or absent".into());
+                }
             }
             MaterialKind::Conductor => {
                 if r.albedo.is_some() {
@@ -155,9 +170,13 @@ impl TryFrom<RawMaterial> for MaterialSection {
             eta: r.eta,
             k: r.k,
             alpha: r.alpha,
+            ior: r.ior,
         })
     }
 }
+
+/// A dielectric's index of refraction when the file gives none (glass).
+pub const DEFAULT_IOR: f32 = 1.5;
 
 /// The named metal's (η, κ).
 fn preset(name: &str) -> Option<([f32; 3], [f32; 3])> {
@@ -166,6 +185,27 @@ fn preset(name: &str) -> Option<([f32; 3], [f32; 3])> {
 
 fn preset_names() -> String {
     CONDUCTOR_PRESETS.iter().map(|p| p.0).collect::<Vec<_>>().join(", ")
+}
+
+/// An index of refraction: finite, within 1e-3..=100.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "f64", into = "f64")]
+pub struct Ior(pub f64);
+
+impl TryFrom<f64> for Ior {
+    type Error = String;
+    fn try_from(v: f64) -> Result<Self, String> {
+        if !(1e-3..=100.0).contains(&v) {
+            return Err(format!("index of refraction {v} must be within 0.001..=100"));
+        }
+        Ok(Self(v))
+    }
+}
+
+impl From<Ior> for f64 {
+    fn from(v: Ior) -> f64 {
+        v.0
+    }
 }
 
 /// GGX roughness α within 0..=1.
@@ -434,9 +474,10 @@ pub enum MaterialKind {
     #[default]
     Diffuse,
     Conductor,
+    Dielectric,
 }
 
-const RESERVED_MATERIALS: [&str; 3] = ["dielectric", "plastic", "principled"];
+const RESERVED_MATERIALS: [&str; 2] = ["plastic", "principled"];
 
 impl TryFrom<String> for MaterialKind {
     type Error = String;
@@ -444,11 +485,14 @@ impl TryFrom<String> for MaterialKind {
         match s.as_str() {
             "diffuse" => Ok(MaterialKind::Diffuse),
             "conductor" => Ok(MaterialKind::Conductor),
+            "dielectric" => Ok(MaterialKind::Dielectric),
             "roughconductor" => Err("use type = \"conductor\" with alpha for a rough conductor".into()),
             r if RESERVED_MATERIALS.contains(&r) => Err(format!(
                 "material type {r:?} is not supported yet (reserved for the physically based materials to come)"
             )),
-            other => Err(format!("unknown material type {other:?} (expected \"diffuse\" or \"conductor\")")),
+            other => {
+                Err(format!("unknown material type {other:?} (expected \"diffuse\", \"conductor\" or \"dielectric\")"))
+            }
         }
     }
 }
@@ -458,6 +502,7 @@ impl From<MaterialKind> for String {
         match k {
             MaterialKind::Diffuse => "diffuse".into(),
             MaterialKind::Conductor => "conductor".into(),
+            MaterialKind::Dielectric => "dielectric".into(),
         }
     }
 }
@@ -536,6 +581,7 @@ fn scene_material(m: &MaterialSection) -> Material {
             };
             conductor(eta, k, m.alpha.map_or(0.0, |a| a.0 as f32), emission)
         }
+        MaterialKind::Dielectric => dielectric(m.ior.map_or(DEFAULT_IOR, |i| i.0 as f32), emission),
     }
 }
 

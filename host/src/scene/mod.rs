@@ -12,7 +12,9 @@ pub mod transform;
 
 use anyhow::{bail, Result};
 use shared::glam::{DVec3, Vec3, Vec4};
-use shared::layout::{Light, Material, Triangle, TriangleInfo, MATERIAL_CONDUCTOR, MATERIAL_DIFFUSE, NO_LIGHT};
+use shared::layout::{
+    Light, Material, Triangle, TriangleInfo, MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, MATERIAL_DIFFUSE, NO_LIGHT,
+};
 use shared::material::is_emissive;
 use shared::triangle::area;
 use shared::vecmath::{luminance, xyz};
@@ -85,6 +87,11 @@ pub fn conductor(eta: Vec3, k: Vec3, alpha: f32, emission: Vec3) -> Material {
         k: k.extend(0.0),
         ..diffuse(Vec3::ZERO, emission)
     }
+}
+
+/// A smooth dielectric of index of refraction `ior` inside (outside 1).
+pub fn dielectric(ior: f32, emission: Vec3) -> Material {
+    Material { kind: MATERIAL_DIELECTRIC, params: Vec4::new(0.0, ior, 0.0, 0.0), ..diffuse(Vec3::ZERO, emission) }
 }
 
 impl Scene {

@@ -1,5 +1,6 @@
 //! Wavefront OBJ + MTL loading through tobj: faces are fan-triangulated, `Kd` becomes the
-//! diffuse albedo, `Ke` the one-sided emission; a mesh without a material is grey diffuse.
+//! diffuse albedo, `Ke` the one-sided emission, `illum` 3/5 a mirror and 4/6/7 glass
+//! (`mtl_material`); a mesh without a material is grey diffuse.
 //!
 //! tobj accepts `nan`, `inf` and `1e39` coordinates and reports errors without a line, so the
 //! vertex lines are checked here first, and every error names the file (and line where it can):
@@ -10,7 +11,7 @@
 //! Format reference: Wavefront's "Object Files (.obj)" and "MTL material format" appendices
 //! (<https://paulbourke.net/dataformats/obj/>, <https://paulbourke.net/dataformats/mtl/>).
 use crate::files::{Disk, Files};
-use crate::scene::{diffuse, Scene, WorldScene};
+use crate::scene::{conductor, dielectric, diffuse, Scene, WorldScene};
 use anyhow::{anyhow, bail, Context, Result};
 use shared::glam::{DVec3, Vec3};
 use std::borrow::Cow;
@@ -119,6 +120,34 @@ fn scan_lines(path: &Path, text: &str) -> Result<Scan> {
         }
     }
     Ok(scan)
+}
+
+/// An MTL material as one of ours: `illum` 3 or 5 (a ray-traced mirror) becomes a smooth
+/// conductor reflecting `Ks` at normal incidence (η = 1 and κ = 2√(Ks/(1 − Ks)) per channel,
+/// whose Fresnel reflectance at normal incidence is Ks; Ks ≥ 1 a perfect mirror); 4, 6 and 7
+/// (glass) a smooth dielectric of index `Ni` (1.5 when absent; `Tf` and `Ks` tints are not
+/// modelled); anything else Lambertian `Kd`. `Ke` emits from every kind.
+fn mtl_material(m: &tobj::Material, kd: Vec3, ke: Vec3) -> shared::layout::Material {
+    match m.illumination_model {
+        Some(3 | 5) => {
+            let ks = m.specular.map_or(Vec3::ONE, |c| Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32));
+            if ks.min_element() >= 1.0 {
+                return conductor(Vec3::ZERO, Vec3::ONE, 0.0, ke);
+            }
+            let k = ks.min(Vec3::splat(0.999_999)).max(Vec3::ZERO);
+            let kappa = Vec3::new(
+                2.0 * (k.x / (1.0 - k.x)).sqrt(),
+                2.0 * (k.y / (1.0 - k.y)).sqrt(),
+                2.0 * (k.z / (1.0 - k.z)).sqrt(),
+            );
+            conductor(Vec3::ONE, kappa, 0.0, ke)
+        }
+        Some(4 | 6 | 7) => {
+            let ni = m.optical_density.filter(|n| n.is_finite() && *n > 0.0).unwrap_or(1.5);
+            dielectric(ni as f32, ke)
+        }
+        _ => diffuse(kd, ke),
+    }
 }
 
 /// Checks that every colour statement (`Ka`, `Kd`, `Ks`, `Ke`) has three numbers: tobj 4
@@ -304,7 +333,7 @@ pub fn parse_mesh(path: &Path, bytes: &[u8], files: &dyn Files) -> Result<Mesh> 
             }
             textures += 1;
         }
-        mats.push(diffuse(Vec3::from(kd), Vec3::from(ke)));
+        mats.push(mtl_material(m, Vec3::from(kd), Vec3::from(ke)));
         names.push(m.name.clone());
     }
     if textures > 0 {

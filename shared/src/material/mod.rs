@@ -11,17 +11,19 @@
 //! When the variant has one material kind only (`features::Variant::only_material`) the kind is
 //! not tested.
 mod conductor;
+mod dielectric;
 mod diffuse;
 mod frame;
 mod microfacet;
 
 pub use conductor::{fresnel_conductor, CONDUCTOR_PRESETS};
+pub use dielectric::fresnel_dielectric;
 pub use frame::Frame;
 pub use microfacet::{ggx_d, ggx_g1, ggx_sample_visible, ggx_visible_pdf};
 
-use crate::features::{Variant, FEATURE_CONDUCTOR, FEATURE_DIFFUSE};
+use crate::features::{Variant, FEATURE_CONDUCTOR, FEATURE_DIELECTRIC, FEATURE_DIFFUSE};
 use crate::glam::Vec3;
-use crate::layout::{Material, MATERIAL_CONDUCTOR, MATERIAL_DIFFUSE};
+use crate::layout::{Material, MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, MATERIAL_DIFFUSE};
 use crate::vecmath::{dot, xyz};
 
 /// The pdf a delta lobe reports: the largest f32, whose square overflows, so that it takes the
@@ -60,14 +62,18 @@ pub fn eval(v: Variant, m: &Material, n: Vec3, wo: Vec3, wi: Vec3) -> (Vec3, f32
     (Vec3::ZERO, 0.0)
 }
 
-/// Samples `wi` for outgoing direction `wo` from uniforms `u1`, `u2`.
+/// Samples `wi` for outgoing direction `wo` from uniforms `u1`, `u2`; `front`: the ray arrived on
+/// the counter-clockwise (outside) side, which a dielectric needs to know which medium is which.
 #[inline]
-pub fn sample(v: Variant, m: &Material, n: Vec3, wo: Vec3, u1: f32, u2: f32) -> BsdfSample {
+pub fn sample(v: Variant, m: &Material, n: Vec3, wo: Vec3, front: bool, u1: f32, u2: f32) -> BsdfSample {
     if is(v, m, MATERIAL_DIFFUSE, FEATURE_DIFFUSE) {
         return diffuse::sample(m, n, u1, u2);
     }
     if is(v, m, MATERIAL_CONDUCTOR, FEATURE_CONDUCTOR) {
         return conductor::sample(m, n, wo, u1, u2);
+    }
+    if is(v, m, MATERIAL_DIELECTRIC, FEATURE_DIELECTRIC) {
+        return dielectric::sample(m, n, wo, front, u1);
     }
     BsdfSample::NONE
 }
@@ -75,7 +81,14 @@ pub fn sample(v: Variant, m: &Material, n: Vec3, wo: Vec3, u1: f32, u2: f32) -> 
 /// Whether every lobe of `m` is a delta (a smooth mirror): light sampling cannot hit it.
 #[inline]
 pub fn is_delta(v: Variant, m: &Material) -> bool {
-    is(v, m, MATERIAL_CONDUCTOR, FEATURE_CONDUCTOR) & (m.params.x == 0.0)
+    (is(v, m, MATERIAL_CONDUCTOR, FEATURE_CONDUCTOR) & (m.params.x == 0.0))
+        | is(v, m, MATERIAL_DIELECTRIC, FEATURE_DIELECTRIC)
+}
+
+/// Whether `m` may send a path through the surface (the next ray starts on the far side).
+#[inline]
+pub fn transmits(v: Variant, m: &Material) -> bool {
+    is(v, m, MATERIAL_DIELECTRIC, FEATURE_DIELECTRIC)
 }
 
 /// Radiance leaving an emitter toward direction `-d` (d: the arriving ray's direction):

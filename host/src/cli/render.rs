@@ -135,7 +135,14 @@ pub fn run(r: RenderArgs) -> Result<ExitCode> {
             traversal: img.traversal,
             dispatch: s.dispatch,
             aov: s.aov,
-            features: features::analyse(c, &s),
+            features: {
+                let mut f = features::analyse(c, &s);
+                // The CPU compiles one variant per set of the non-material bits and material mode.
+                if r.device == Device::Cpu && s.specialize {
+                    f.variant_bits = crate::render::cpu::cpu_variant_bits(f.bits);
+                }
+                f
+            },
             mean_nodes: cost_mean(0),
             mean_tests: cost_mean(1),
             mean_restarts: cost_mean(2),

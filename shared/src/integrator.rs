@@ -12,9 +12,9 @@ use crate::camera::primary_direction;
 use crate::features::{Variant, FEATURE_EMITTERS, FEATURE_ENVIRONMENT, FEATURE_INDIRECT, FEATURE_MANY_EMITTERS};
 use crate::glam::{Vec3, Vec4};
 use crate::kdtree::Hit;
-use crate::layout::{RenderParams, AOV_COST, NO_HIT, NO_LIGHT};
-use crate::material::{emitted, eval, is_delta, sample as sample_bsdf, transmits};
-use crate::numerics::{offset_ray_origin, sanitize_radiance};
+use crate::layout::{RenderParams, AOV_ALBEDO, AOV_COST, AOV_NORMAL, NO_HIT, NO_LIGHT};
+use crate::material::{albedo, emitted, eval, is_delta, sample as sample_bsdf, transmits};
+use crate::numerics::{offset_ray_origin, sanitize};
 use crate::raycast::{any, closest};
 use crate::rng::Sampler;
 use crate::sampling::{power_heuristic, remap_in_light, select_light, uniform_triangle};
@@ -78,6 +78,16 @@ pub fn trace_sample(scene: &SceneView, p: &RenderParams, v: Variant, px: u32, py
         if (path.bounce == 0) & (p.aov == AOV_COST) {
             // The cost image: the camera ray's traversal work instead of radiance.
             path.radiance = Vec3::new(hit.nodes as f32, hit.tests as f32, traced.restarts as f32);
+            alive = false;
+        } else if (path.bounce == 0) & ((p.aov == AOV_ALBEDO) | (p.aov == AOV_NORMAL)) {
+            // The first hit's albedo or shading normal, for denoisers and debugging.
+            if hit.is_hit() {
+                let tri = &scene.triangles[hit.triangle as usize];
+                let n = stored_normal(tri);
+                let ns = if dot(geometric_normal(tri), path.dir) < 0.0 { n } else { -n };
+                let mat = &scene.materials[scene.info[hit.triangle as usize].material as usize];
+                path.radiance = if p.aov == AOV_NORMAL { ns } else { albedo(v, mat) };
+            }
             alive = false;
         } else if hit.is_hit() {
             alive = shade_vertex(scene, p, v, &mut path, &mut rng, &hit);
@@ -243,7 +253,7 @@ pub fn render_samples(
         if s == 0 {
             *primary = r.primary;
         }
-        let (l, bad) = sanitize_radiance(r.radiance);
+        let (l, bad) = sanitize(r.radiance, p.aov == AOV_NORMAL);
         acc += Vec4::new(l.x, l.y, l.z, if bad { 1.0 } else { 0.0 });
         acc_sq += Vec4::new(l.x * l.x, l.y * l.y, l.z * l.z, 0.0);
         s += 1;

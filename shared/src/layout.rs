@@ -223,6 +223,10 @@ pub const AOV_RADIANCE: u32 = 0;
 /// The image is the camera ray's traversal work: k-d nodes visited in `x`, triangles tested in
 /// `y`, restarts in `z`.
 pub const AOV_COST: u32 = 1;
+/// The image is the first hit's albedo (`material::albedo`), black where the camera ray misses.
+pub const AOV_ALBEDO: u32 = 2;
+/// The image is the first hit's shading normal, turned toward the camera, in world space.
+pub const AOV_NORMAL: u32 = 3;
 
 /// `RayQuery::flags`: stop at the first hit found (a shadow or ambient-occlusion ray).
 pub const RAY_ANY_HIT: u32 = 1;

@@ -101,7 +101,15 @@ pub fn inverse_power_of_two(x: f32) -> f32 {
 /// Zeroes a non-finite or negative radiance sample. Returns the sample and whether it was bad.
 #[inline]
 pub fn sanitize_radiance(l: Vec3) -> (Vec3, bool) {
-    let bad = !is_finite3(l) | (l.x < 0.0) | (l.y < 0.0) | (l.z < 0.0);
+    sanitize(l, false)
+}
+
+/// `sanitize_radiance` for values that may be negative (a normal image): only non-finite ones
+/// are zeroed unless `signed` is false.
+#[inline]
+pub fn sanitize(l: Vec3, signed: bool) -> (Vec3, bool) {
+    let negative = (l.x < 0.0) | (l.y < 0.0) | (l.z < 0.0);
+    let bad = !is_finite3(l) | (negative & !signed);
     if bad {
         (Vec3::ZERO, true)
     } else {

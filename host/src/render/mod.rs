@@ -20,8 +20,8 @@ use anyhow::{bail, Result};
 use rayon::prelude::*;
 use shared::glam::{DVec3, Vec4};
 use shared::layout::{
-    Light, RenderParams, TriBlock, Triangle, AOV_COST, AOV_RADIANCE, BLOCK_WIDTH, TRAVERSAL_FULL_STACK,
-    TRAVERSAL_SHORT_STACK,
+    Light, RenderParams, TriBlock, Triangle, AOV_ALBEDO, AOV_COST, AOV_NORMAL, AOV_RADIANCE, BLOCK_WIDTH,
+    TRAVERSAL_FULL_STACK, TRAVERSAL_SHORT_STACK,
 };
 use shared::numerics::MAX_EXTENT;
 use shared::scene::SceneView;
@@ -95,6 +95,8 @@ impl Compiled {
             aov: match s.aov {
                 Aov::Radiance => AOV_RADIANCE,
                 Aov::Cost => AOV_COST,
+                Aov::Albedo => AOV_ALBEDO,
+                Aov::Normal => AOV_NORMAL,
             },
             persistent_rounds: u32::MAX,
             sampler: s.sampler.tag(),

@@ -96,6 +96,11 @@ pub enum Aov {
     Radiance,
     /// The camera ray's traversal work: nodes visited (R), triangles tested (G), restarts (B).
     Cost,
+    /// The first hit's albedo (a conductor's reflectance at normal incidence, glass white).
+    Albedo,
+    /// The first hit's shading normal, turned toward the camera (EXR: −1..1; PNG: 0.5 + 0.5·n,
+    /// sRGB-encoded as every PNG kdtrace writes).
+    Normal,
 }
 
 /// How adaptive sampling uses its pilot samples.

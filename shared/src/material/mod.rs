@@ -91,6 +91,24 @@ pub fn transmits(v: Variant, m: &Material) -> bool {
     is(v, m, MATERIAL_DIELECTRIC, FEATURE_DIELECTRIC)
 }
 
+/// The material's colour for an albedo image: a diffuse albedo, a conductor's reflectance at
+/// normal incidence, a dielectric's white (it lets everything through or reflects it).
+#[inline]
+pub fn albedo(v: Variant, m: &Material) -> Vec3 {
+    if is(v, m, MATERIAL_CONDUCTOR, FEATURE_CONDUCTOR) {
+        // ((η − 1)² + κ²) / ((η + 1)² + κ²): `fresnel_conductor` at normal incidence, written
+        // out (with the cosine a constant 1 a shader compiler simplifies the general form).
+        let (eta, k) = (xyz(m.eta), xyz(m.k));
+        let below = (eta - Vec3::ONE) * (eta - Vec3::ONE) + k * k;
+        let above = (eta + Vec3::ONE) * (eta + Vec3::ONE) + k * k;
+        return below / above;
+    }
+    if is(v, m, MATERIAL_DIELECTRIC, FEATURE_DIELECTRIC) {
+        return Vec3::ONE;
+    }
+    xyz(m.albedo)
+}
+
 /// Radiance leaving an emitter toward direction `-d` (d: the arriving ray's direction):
 /// emission is one-sided, from the counter-clockwise side (`normal` is the geometric one).
 #[inline]

@@ -376,3 +376,38 @@ fn albedo_and_normal_images_show_the_first_hit() {
         }
     }
 }
+
+/// A `.kdc` keeps conductors and dielectrics: compiled and rendered, the gold box gives the
+/// pixels its scene file gives.
+#[test]
+fn compiled_scenes_keep_their_materials() {
+    let root = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let scene = root.join("tests/data/cornell-metal/cornell-metal.toml");
+    let dir = std::env::temp_dir().join(format!("kdtrace-kdc-materials-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let kdc = dir.join("metal.kdc");
+    let run = |args: &[&str]| {
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_kdtrace")).args(args).output().unwrap();
+        assert!(o.status.success(), "{args:?}: {}", String::from_utf8_lossy(&o.stderr));
+    };
+    run(&["compile", scene.to_str().unwrap(), "--out", kdc.to_str().unwrap()]);
+    let image = |input: &std::path::Path, name: &str| {
+        let out = dir.join(name);
+        run(&[
+            "render",
+            input.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--width",
+            "16",
+            "--height",
+            "16",
+            "--spp",
+            "4",
+        ]);
+        kdtrace::image::io::read_exr(&out).unwrap().2
+    };
+    let (a, b) = (image(&scene, "a.exr"), image(&kdc, "b.exr"));
+    // A .kdc that lost the gold (read back as diffuse, say) would render the block grey.
+    assert!(a == b, "the .kdc renders other pixels than its scene file");
+}

@@ -90,7 +90,7 @@ def main():
             "channel_values": int(t.size),
         }
     with open(os.path.join(a.out, "adaptive_bias.json"), "w") as f:
-        json.dump({"scene": a.scene, "size": a.size, "threshold": a.threshold, "ref_spp": a.ref_spp, "modes": results}, f, indent=1)
+        json.dump({"scene": os.path.relpath(a.scene, ROOT), "size": a.size, "threshold": a.threshold, "ref_spp": a.ref_spp, "modes": results}, f, indent=1)
     print(f"{os.path.basename(a.scene)}, {a.size}, threshold {a.threshold}, {a.seeds} seeds, reference {a.ref_spp} spp fixed")
     print("| mode | mean spp | image mean bias | worst pixel (x, y, channel): bias, t | channel values with abs(t) > 4 |")
     print("|---|---|---|---|---|")

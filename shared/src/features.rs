@@ -57,12 +57,6 @@ impl Variant {
     pub const GENERIC_SPEC: Variant =
         Variant { features: FEATURES_ALL, max_bounces: FROM_PARAMS, rr_start: FROM_PARAMS };
 
-    /// The generic code: every feature, limits from the parameters.
-    #[inline(always)]
-    pub fn generic(p: &RenderParams) -> Self {
-        Self::new(FEATURES_ALL, p)
-    }
-
     /// Feature set `features`, limits from the parameters (the CPU's const-generic variants).
     #[inline(always)]
     pub fn new(features: u32, p: &RenderParams) -> Self {
@@ -78,6 +72,15 @@ impl Variant {
             max_bounces: if max_bounces == FROM_PARAMS { p.max_bounces } else { max_bounces },
             rr_start: if rr_start == FROM_PARAMS { p.rr_start } else { rr_start },
         }
+    }
+
+    /// (specialisation constant id, value) of each of the kernel's constants for this variant.
+    pub fn spec_constants(self) -> [(u32, u32); 3] {
+        [
+            (spec_id::FEATURES, self.features),
+            (spec_id::MAX_BOUNCES, self.max_bounces),
+            (spec_id::RR_START, self.rr_start),
+        ]
     }
 
     /// Whether this variant includes `bit`'s work.

@@ -83,8 +83,7 @@ pub fn trace_sample(scene: &SceneView, p: &RenderParams, v: Variant, px: u32, py
             // The first hit's albedo or shading normal, for denoisers and debugging.
             if hit.is_hit() {
                 let tri = &scene.triangles[hit.triangle as usize];
-                let n = stored_normal(tri);
-                let ns = if dot(geometric_normal(tri), path.dir) < 0.0 { n } else { -n };
+                let (ns, _) = facing(geometric_normal(tri), stored_normal(tri), path.dir);
                 let mat = &scene.materials[scene.info[hit.triangle as usize].material as usize];
                 path.radiance = if p.aov == AOV_NORMAL { ns } else { albedo(v, mat) };
             }
@@ -99,6 +98,14 @@ pub fn trace_sample(scene: &SceneView, p: &RenderParams, v: Variant, px: u32, py
         }
     }
     PathSample { radiance: path.radiance, primary }
+}
+
+/// The shading normal `n` turned toward the side the ray (direction `dir`) arrived from, and
+/// whether that is the front (counter-clockwise) side, judged by the geometric normal `ng`.
+#[inline(always)]
+fn facing(ng: Vec3, n: Vec3, dir: Vec3) -> (Vec3, bool) {
+    let front = dot(ng, dir) < 0.0;
+    (if front { n } else { -n }, front)
 }
 
 /// One path vertex: emission (MIS-weighted against light sampling), next-event estimation, then
@@ -149,8 +156,7 @@ fn shade_vertex(
     }
 
     // Shade on the side the ray arrived from: the materials are two-sided.
-    let front = dot(ng, dir) < 0.0;
-    let ns = if front { n } else { -n };
+    let (ns, front) = facing(ng, n, dir);
     let spawn = offset_ray_origin(pos, surface.error, ns);
     let wo = -normalize(dir);
 

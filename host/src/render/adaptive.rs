@@ -7,8 +7,8 @@
 //! no better than uniform sampling on `scenes/uneven-noise.toml`, and the box (variance changes
 //! slowly across an image) brings them to within 15% of the budgets from the true variance. It
 //! also keeps a pixel whose pilot missed a rare bright path that its neighbours caught from
-//! being left behind (Cycles widens its convergence test over neighbours for that reason). The image's relMSE with n_i samples per
-//! pixel is mean(v_i / n_i); for a given total it is smallest with n_i ∝ √v_i (a Lagrange
+//! being left behind (Cycles widens its convergence test over neighbours for that reason).
+//! The image's relMSE with n_i samples per pixel is mean(v_i / n_i); for a given total it is smallest with n_i ∝ √v_i (a Lagrange
 //! multiplier; the allocation of Neyman's optimal stratified sampling), and it equals the
 //! threshold² with n_i = √v_i · mean(√v) / threshold². (Equal error per pixel, n_i ∝ v_i, would
 //! spend as much as uniform sampling for the same mean error.) Then:
@@ -46,8 +46,8 @@ pub trait Passes {
     fn pass(&mut self, ranges: &[[u32; 2]]) -> Result<()>;
     /// The most samples one pixel may take in one pass.
     fn max_per_pass(&self) -> u32;
-    /// The running sums (radiance with the zeroed-sample count, squares).
-    fn sums(&mut self) -> Result<(Vec<Vec4>, Vec<Vec4>)>;
+    /// The running radiance sums (with the zeroed-sample count in `w`): what the estimate needs.
+    fn sums(&mut self) -> Result<Vec<Vec4>>;
 }
 
 /// What an adaptive render leaves: per pixel the samples its sums hold.
@@ -135,7 +135,7 @@ fn smooth(values: &[f64], width: usize, height: usize, own: bool) -> Vec<f64> {
 /// `rv`: n_i = √v_i · mean(√v) / threshold², within [lo, hi].
 fn budgets(rv: &[f64], threshold: f32, lo: u32, hi: u32) -> Vec<u32> {
     let t2 = threshold as f64 * threshold as f64;
-    let mean_sqrt = rv.iter().map(|v| v.sqrt()).sum::<f64>() / rv.len().max(1) as f64;
+    let mean_sqrt = mean_sqrt(rv);
     rv.iter()
         .map(|v| {
             let n = (v.sqrt() * mean_sqrt / t2).ceil();
@@ -146,6 +146,11 @@ fn budgets(rv: &[f64], threshold: f32, lo: u32, hi: u32) -> Vec<u32> {
             }
         })
         .collect()
+}
+
+/// mean(√v).
+fn mean_sqrt(rv: &[f64]) -> f64 {
+    rv.iter().map(|v| v.sqrt()).sum::<f64>() / rv.len().max(1) as f64
 }
 
 /// Renders adaptively on `dev`; the sums are left on the device, the counts returned.
@@ -159,8 +164,8 @@ pub fn render(dev: &mut impl Passes, s: &RenderSettings, a: Adaptive, progress: 
     let mut estimator = Estimator::new(n);
     let pilot_total = n as u64 * a.min_spp as u64;
     for half in [a.min_spp / 2, a.min_spp] {
-        run_ranges(dev, &mut counts, &vec![half; n], 0, step, &|d| progress(d, pilot_total), &out_of_time, &clock)?;
-        estimator.update(&dev.sums()?.0, &counts);
+        run_ranges(dev, &mut counts, &vec![half; n], step, &|d| progress(d, pilot_total), &out_of_time, &clock)?;
+        estimator.update(&dev.sums()?, &counts);
     }
     let pilot_s = clock.elapsed().as_secs_f64();
     match a.mode {
@@ -175,8 +180,8 @@ pub fn render(dev: &mut impl Passes, s: &RenderSettings, a: Adaptive, progress: 
                 // one asked for. The proportions stay, so the time goes where the noise is.
                 let per_sample = pilot_s / pilot_total as f64;
                 let allowed = (limit - pilot_s).max(0.0) / per_sample.max(1e-12);
-                let mean_sqrt = rv.iter().map(|v| v.sqrt()).sum::<f64>() / n as f64;
-                let fitted = (n as f64 * mean_sqrt * mean_sqrt / allowed.max(1.0)).sqrt();
+                let m = mean_sqrt(&rv);
+                let fitted = (n as f64 * m * m / allowed.max(1.0)).sqrt();
                 threshold = threshold.max(fitted as f32);
             }
             let budget = budgets(&rv, threshold, a.min_spp, s.spp);
@@ -185,7 +190,6 @@ pub fn render(dev: &mut impl Passes, s: &RenderSettings, a: Adaptive, progress: 
                 dev,
                 &mut counts,
                 &budget,
-                0,
                 step,
                 &|done| progress(pilot_total + done, total),
                 &out_of_time,
@@ -212,14 +216,13 @@ pub fn render(dev: &mut impl Passes, s: &RenderSettings, a: Adaptive, progress: 
                     dev,
                     &mut counts,
                     &target,
-                    0,
                     step,
                     &|d| progress(before + d, before + round),
                     &out_of_time,
                     &clock,
                 )?;
                 done += round;
-                estimator.update(&dev.sums()?.0, &counts);
+                estimator.update(&dev.sums()?, &counts);
                 rv = estimator.estimates(s, true);
             }
             Ok(Outcome { counts })
@@ -227,14 +230,12 @@ pub fn render(dev: &mut impl Passes, s: &RenderSettings, a: Adaptive, progress: 
     }
 }
 
-/// Passes until every pixel's `counts[i]` reaches `target[i]`, its samples numbered from
-/// `first + counts[i]`, at most `step` per pixel and pass; stops early when out of time.
-#[allow(clippy::too_many_arguments)]
+/// Passes until every pixel's `counts[i]` reaches `target[i]`, its next sample numbered
+/// `counts[i]`, at most `step` per pixel and pass; stops early when out of time.
 fn run_ranges(
     dev: &mut impl Passes,
     counts: &mut [u32],
     target: &[u32],
-    first: u32,
     step: u32,
     progress: &dyn Fn(u64),
     out_of_time: &dyn Fn(&Instant) -> bool,
@@ -243,7 +244,7 @@ fn run_ranges(
     let start: Vec<u32> = counts.to_vec();
     loop {
         let ranges: Vec<[u32; 2]> =
-            counts.iter().zip(target).map(|(&c, &t)| [first + c, t.saturating_sub(c).min(step)]).collect();
+            counts.iter().zip(target).map(|(&c, &t)| [c, t.saturating_sub(c).min(step)]).collect();
         if ranges.iter().all(|r| r[1] == 0) {
             return Ok(());
         }

@@ -188,8 +188,8 @@ impl adaptive::Passes for CpuPasses<'_> {
         ADAPTIVE_PASS_SAMPLES
     }
 
-    fn sums(&mut self) -> Result<(Vec<Vec4>, Vec<Vec4>)> {
-        Ok((self.sum.clone(), self.sum_sq.clone()))
+    fn sums(&mut self) -> Result<Vec<Vec4>> {
+        Ok(self.sum.clone())
     }
 }
 

@@ -6,7 +6,7 @@
 use crate::render::{Compiled, Progress, Rendered};
 use crate::settings::{Dispatch, RenderSettings};
 use anyhow::{anyhow, bail, Context, Result};
-use shared::features::{spec_id, Variant};
+use shared::features::Variant;
 use shared::glam::Vec4;
 use shared::layout::{
     binding, RayQuery, RayResult, RenderParams, TriBlock, CAST_GROUP, LIST_GROUP, PERSISTENT_GROUP, RENDER_GROUP_SIDE,
@@ -194,19 +194,15 @@ impl Gpu {
         if let Some(p) = self.pipelines.lock().unwrap().get(&(entry, v)) {
             return Ok(p.clone());
         }
-        let ids = [spec_id::FEATURES, spec_id::MAX_BOUNCES, spec_id::RR_START].map(|id| id.to_string());
-        let values = [v.features, v.max_bounces, v.rr_start];
         // Only what differs from the kernel's defaults: the generic pipeline sets nothing.
-        let constants: Vec<(&str, f64)> = ids
-            .iter()
-            .zip(values.iter().zip([
-                Variant::GENERIC_SPEC.features,
-                Variant::GENERIC_SPEC.max_bounces,
-                Variant::GENERIC_SPEC.rr_start,
-            ]))
-            .filter(|(_, (value, default))| **value != *default)
-            .map(|(id, (value, _))| (id.as_str(), *value as f64))
+        let keys: Vec<(String, f64)> = v
+            .spec_constants()
+            .into_iter()
+            .zip(Variant::GENERIC_SPEC.spec_constants())
+            .filter(|(c, default)| c != default)
+            .map(|((id, value), _)| (id.to_string(), value as f64))
             .collect();
+        let constants: Vec<(&str, f64)> = keys.iter().map(|(id, value)| (id.as_str(), *value)).collect();
         let scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         let pipeline = self.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some(entry),
@@ -369,7 +365,6 @@ impl Gpu {
                 params_buffer: &scene.params,
                 live: &live,
                 accum: &accum,
-                accum_sq: &accum_sq,
                 bytes: accum_bytes,
             };
             let outcome = super::adaptive::render(&mut dev, s, a, progress)?;
@@ -518,7 +513,6 @@ struct GpuPasses<'a> {
     params_buffer: &'a wgpu::Buffer,
     live: &'a wgpu::Buffer,
     accum: &'a wgpu::Buffer,
-    accum_sq: &'a wgpu::Buffer,
     bytes: u64,
 }
 
@@ -550,8 +544,8 @@ impl super::adaptive::Passes for GpuPasses<'_> {
         }
     }
 
-    fn sums(&mut self) -> Result<(Vec<Vec4>, Vec<Vec4>)> {
-        Ok((self.gpu.read_back(self.accum, self.bytes)?, self.gpu.read_back(self.accum_sq, self.bytes)?))
+    fn sums(&mut self) -> Result<Vec<Vec4>> {
+        self.gpu.read_back(self.accum, self.bytes)
     }
 }
 
@@ -568,7 +562,7 @@ pub fn variant(c: &Compiled, s: &RenderSettings) -> Variant {
 
 #[cfg(test)]
 mod tests {
-    use shared::features::{spec_id, Variant};
+    use shared::features::Variant;
     use shared::layout::{binding, CAST_GROUP, LIST_GROUP, PERSISTENT_GROUP, RENDER_GROUP_SIDE};
 
     /// The kernel's source, whose `#[spirv(...)]` attributes take literals only.
@@ -625,11 +619,9 @@ mod tests {
 
     #[test]
     fn kernel_spec_constants_match_the_layout() {
-        let expected = [
-            ("features", spec_id::FEATURES, Variant::GENERIC_SPEC.features),
-            ("max_bounces", spec_id::MAX_BOUNCES, Variant::GENERIC_SPEC.max_bounces),
-            ("rr_start", spec_id::RR_START, Variant::GENERIC_SPEC.rr_start),
-        ];
+        // The kernel's parameter names, in the order of `Variant::spec_constants`.
+        let [f, b, r] = Variant::GENERIC_SPEC.spec_constants();
+        let expected = [("features", f.0, f.1), ("max_bounces", b.0, b.1), ("rr_start", r.0, r.1)];
         let mut seen = 0;
         for line in KERNEL.lines() {
             let Some(at) = line.find("spec_constant(id = ") else { continue };

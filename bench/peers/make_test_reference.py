@@ -1,7 +1,11 @@
 """Makes tests/data/cornell-box-mitsuba-32.exr and its standard-error image for tests/reference_mitsuba.rs
 (and, with `metal`, tests/data/cornell-metal/cornell-metal-mitsuba-32.exr: the box with its tall
 block a rough gold conductor, Mitsuba's `roughconductor` with GGX α 0.2, visible-normal sampling
-and kdtrace's Au η and κ, two-sided as kdtrace's materials are).
+and kdtrace's Au η and κ, two-sided as kdtrace's materials are; with `glass`,
+tests/data/cornell-materials/cornell-glass-mitsuba-32.exr: the tall block a rough dielectric,
+`roughdielectric` GGX α 0.2, int_ior 1.5, ext_ior 1; with `plastic`,
+tests/data/cornell-materials/cornell-plastic-mitsuba-32.exr: the tall block `plastic` with
+diffuse_reflectance (0.7, 0.25, 0.1), int_ior 1.5, ext_ior 1, nonlinear false, two-sided).
 
 Mitsuba 3.9 `llvm_ad_rgb` renders our Cornell box (scenes/cornell-box.obj) as render_mitsuba.py
 does: 32x32 pixels, 6 bounces (max_depth 8), Cornell's camera (eye 0.278,0.273,0.8, target
@@ -42,13 +46,24 @@ AU_K = [3.983160, 2.385721, 1.603215]
 
 def main():
     mi.set_variant("llvm_ad_rgb")
-    metal = sys.argv[1:] == ["metal"]
-    obj = os.path.join(ROOT, "tests", "data", "cornell-metal", "cornell-metal.obj") if metal else os.path.join(ROOT, "scenes", "cornell-box.obj")
+    mode = sys.argv[1] if len(sys.argv) > 1 else "box"
+    if mode not in ("box", "metal", "glass", "plastic"):
+        sys.exit(f"unknown mode {mode!r}: box, metal, glass or plastic")
+    box = os.path.join(ROOT, "scenes", "cornell-box.obj")
+    block = os.path.join(ROOT, "tests", "data", "cornell-metal", "cornell-metal.obj")
+    obj = box if mode == "box" else block
     bsdfs = {}
-    if metal:
+    if mode == "metal":
         gold = {"type": "roughconductor", "distribution": "ggx", "alpha": 0.2, "sample_visible": True,
                 "eta": {"type": "rgb", "value": AU_ETA}, "k": {"type": "rgb", "value": AU_K}}
         bsdfs["gold"] = {"type": "twosided", "material": gold}
+    elif mode == "glass":
+        bsdfs["gold"] = {"type": "roughdielectric", "distribution": "ggx", "alpha": 0.2, "sample_visible": True,
+                         "int_ior": 1.5, "ext_ior": 1.0}
+    elif mode == "plastic":
+        plastic = {"type": "plastic", "diffuse_reflectance": {"type": "rgb", "value": [0.7, 0.25, 0.1]},
+                   "int_ior": 1.5, "ext_ior": 1.0, "nonlinear": False}
+        bsdfs["gold"] = {"type": "twosided", "material": plastic}
     args = SimpleNamespace(
         scene=obj, width=SIZE, height=SIZE, bounces=6, sampler="independent",
         eye=(0.278, 0.273, 0.8), target=(0.278, 0.273, 0.0), up=(0.0, 1.0, 0.0), fov=39.3076,
@@ -63,8 +78,12 @@ def main():
     chunks = np.stack(chunks)
     mean = chunks.mean(axis=0)
     stderr = np.sqrt(chunks.var(axis=0, ddof=1) / CHUNKS)
-    out = os.path.join(ROOT, "tests", "data", "cornell-metal") if metal else os.path.join(ROOT, "tests", "data")
-    stem = "cornell-metal-mitsuba-32" if metal else "cornell-box-mitsuba-32"
+    out, stem = {
+        "box": (os.path.join(ROOT, "tests", "data"), "cornell-box-mitsuba-32"),
+        "metal": (os.path.join(ROOT, "tests", "data", "cornell-metal"), "cornell-metal-mitsuba-32"),
+        "glass": (os.path.join(ROOT, "tests", "data", "cornell-materials"), "cornell-glass-mitsuba-32"),
+        "plastic": (os.path.join(ROOT, "tests", "data", "cornell-materials"), "cornell-plastic-mitsuba-32"),
+    }[mode]
     os.makedirs(out, exist_ok=True)
     for name, a in [(f"{stem}.exr", mean), (f"{stem}-stderr.exr", stderr)]:
         mi.util.write_bitmap(os.path.join(out, name), mi.Bitmap(a.astype(np.float32), pixel_format=mi.Bitmap.PixelFormat.RGB), write_async=False)

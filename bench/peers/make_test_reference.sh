@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Regenerates tests/data/cornell-box-mitsuba-32{,-stderr}.exr, or with `metal`
-# tests/data/cornell-metal/cornell-metal-mitsuba-32{,-stderr}.exr (see make_test_reference.py), with
+# Regenerates tests/data/cornell-box-mitsuba-32{,-stderr}.exr, or with `metal`, `glass` or `plastic`
+# the tall block's material references (see make_test_reference.py for where each goes), with
 # the venv and LLVM that bench/peers.sh sets up. About 2-4 minutes on 2 cores.
 set -euo pipefail
 cd "$(dirname "$0")/../.."

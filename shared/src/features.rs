@@ -23,10 +23,15 @@ pub const FEATURE_INDIRECT: u32 = 1 << 4;
 pub const FEATURE_CONDUCTOR: u32 = 1 << 5;
 /// Dielectrics (`material::dielectric`) are present.
 pub const FEATURE_DIELECTRIC: u32 = 1 << 6;
+/// Plastics (`material::plastic`) are present.
+pub const FEATURE_PLASTIC: u32 = 1 << 7;
+/// glTF metallic-roughness materials (`material::principled`) are present.
+pub const FEATURE_PRINCIPLED: u32 = 1 << 8;
 /// Every feature: the generic code, which serves any scene.
-pub const FEATURES_ALL: u32 = (1 << 7) - 1;
+pub const FEATURES_ALL: u32 = (1 << 9) - 1;
 /// The material-kind bits: when exactly one is set, material dispatch is skipped.
-pub const FEATURE_MATERIALS: u32 = FEATURE_DIFFUSE | FEATURE_CONDUCTOR | FEATURE_DIELECTRIC;
+pub const FEATURE_MATERIALS: u32 =
+    FEATURE_DIFFUSE | FEATURE_CONDUCTOR | FEATURE_DIELECTRIC | FEATURE_PLASTIC | FEATURE_PRINCIPLED;
 
 /// A bounce limit or roulette start given by specialisation constant: this value (the kernel's
 /// default) means "read it from `RenderParams`".

@@ -13,7 +13,7 @@ use crate::features::{Variant, FEATURE_EMITTERS, FEATURE_ENVIRONMENT, FEATURE_IN
 use crate::glam::{Vec3, Vec4};
 use crate::kdtree::Hit;
 use crate::layout::{RenderParams, AOV_ALBEDO, AOV_COST, AOV_NORMAL, NO_HIT, NO_LIGHT};
-use crate::material::{albedo, emitted, eval, is_delta, sample as sample_bsdf, transmits};
+use crate::material::{albedo, emitted, eval, is_delta, picks_lobe, sample as sample_bsdf, transmits};
 use crate::numerics::{offset_ray_origin, sanitize};
 use crate::raycast::{any, closest};
 use crate::rng::Sampler;
@@ -180,19 +180,25 @@ fn shade_vertex(
         let dist2 = length_squared(to_light);
         let wi = to_light * (1.0 / dist2.sqrt());
         let cos_l = -dot(nl, wi);
-        let (f, pdf_bsdf) = eval(v, mat, ns, wo, wi);
+        let (f, pdf_bsdf) = eval(v, mat, ns, wo, wi, front);
         if (cos_l > 0.0) & (pdf_bsdf > 0.0) & (dist2 > 0.0) {
             let light_pdf = light.pmf * dist2 / (cos_l * light.area);
             let target = offset_ray_origin(q, on_light.error, nl);
-            if !any(scene, p.traversal, spawn, target - spawn, 1.0 - SHADOW_EPSILON).hit.is_hit() {
+            // A light behind a transmitting surface is seen through it: the shadow ray leaves
+            // from the far side.
+            let cos_i = dot(ns, wi);
+            let from = if cos_i < 0.0 { offset_ray_origin(pos, surface.error, -ns) } else { spawn };
+            if !any(scene, p.traversal, from, target - from, 1.0 - SHADOW_EPSILON).hit.is_hit() {
                 let lmat = &scene.materials[scene.info[light.triangle as usize].material as usize];
                 let weight = power_heuristic(light_pdf, pdf_bsdf);
-                path.radiance += path.beta * f * xyz(lmat.emission) * (dot(ns, wi) * weight / light_pdf);
+                path.radiance += path.beta * f * xyz(lmat.emission) * (cos_i.abs() * weight / light_pdf);
             }
         }
     }
 
-    let bs = sample_bsdf(v, mat, ns, wo, front, ub1, ub2);
+    // The lobe pick's uniform, drawn only for a material that has a choice.
+    let u_pick = if picks_lobe(v, mat) { rng.independent_after() } else { 0.0 };
+    let bs = sample_bsdf(v, mat, ns, wo, front, ub1, ub2, u_pick);
     if bs.pdf <= 0.0 {
         return false;
     }

@@ -80,9 +80,15 @@ pub const MATERIAL_DIFFUSE: u32 = 0;
 /// A conductor: complex index of refraction `eta` + i·`k` per channel, smooth (`params.x`, the
 /// GGX α, is 0) or rough.
 pub const MATERIAL_CONDUCTOR: u32 = 1;
-/// A smooth dielectric of index of refraction `params.y` inside (the counter-clockwise side is
-/// outside, index 1).
+/// A dielectric of index of refraction `params.y` inside (the counter-clockwise side is outside,
+/// index 1), smooth or rough (GGX α `params.x`).
 pub const MATERIAL_DIELECTRIC: u32 = 2;
+/// Plastic: a diffuse base `albedo` under a smooth dielectric coating of index `params.y`
+/// (`params.z`, `params.w`: the base's constant factors, `material::plastic_scale`).
+pub const MATERIAL_PLASTIC: u32 = 3;
+/// The glTF metallic-roughness model: base colour `albedo`, `params` = (GGX α, index of
+/// refraction, metallic, transmission).
+pub const MATERIAL_PRINCIPLED: u32 = 4;
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -94,7 +100,8 @@ pub struct Material {
     pub albedo: Vec4,
     /// Emitted radiance from the front (counter-clockwise) side (MTL `Ke`), linear RGB in `xyz`.
     pub emission: Vec4,
-    /// `x`: GGX roughness α (0: smooth); `y`: a dielectric's index of refraction inside.
+    /// `x`: GGX roughness α (0: smooth); `y`: the index of refraction inside (dielectric, plastic
+    /// coating, principled); `z`: metallic and `w`: transmission (principled).
     pub params: Vec4,
     /// Conductor: the real part of the complex index of refraction per channel, in `xyz`.
     pub eta: Vec4,

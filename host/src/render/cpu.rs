@@ -35,7 +35,7 @@ macro_rules! variants {
 }
 variants!(
     8 9 10 11 12 13 14 15 24 25 26 27 28 29 30 31
-    104 105 106 107 108 109 110 111 120 121 122 123 124 125 126 127
+    488 489 490 491 492 493 494 495 504 505 506 507 508 509 510 511
 );
 
 /// The feature bits the CPU compiles a variant for, covering `bits`: the bits outside the

@@ -6,9 +6,11 @@ use crate::settings::RenderSettings;
 use serde::Serialize;
 use shared::features::{
     FEATURES_ALL, FEATURE_CONDUCTOR, FEATURE_DIELECTRIC, FEATURE_DIFFUSE, FEATURE_EMITTERS, FEATURE_ENVIRONMENT,
-    FEATURE_INDIRECT, FEATURE_MANY_EMITTERS,
+    FEATURE_INDIRECT, FEATURE_MANY_EMITTERS, FEATURE_PLASTIC, FEATURE_PRINCIPLED,
 };
-use shared::layout::{MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, MATERIAL_DIFFUSE};
+use shared::layout::{
+    MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, MATERIAL_DIFFUSE, MATERIAL_PLASTIC, MATERIAL_PRINCIPLED,
+};
 use shared::vecmath::{max_component, xyz};
 
 /// The feature set and the facts behind it.
@@ -38,7 +40,7 @@ pub struct Features {
 }
 
 /// Each bit's name, as `render --json` and the tests print them.
-pub const FEATURE_NAMES: [(u32, &str); 7] = [
+pub const FEATURE_NAMES: [(u32, &str); 9] = [
     (FEATURE_EMITTERS, "emitters"),
     (FEATURE_MANY_EMITTERS, "many_emitters"),
     (FEATURE_ENVIRONMENT, "environment"),
@@ -46,6 +48,8 @@ pub const FEATURE_NAMES: [(u32, &str); 7] = [
     (FEATURE_INDIRECT, "indirect"),
     (FEATURE_CONDUCTOR, "conductor"),
     (FEATURE_DIELECTRIC, "dielectric"),
+    (FEATURE_PLASTIC, "plastic"),
+    (FEATURE_PRINCIPLED, "principled"),
 ];
 
 /// The feature bits of the variant that renders `c` with `s`: the scene's set, or every bit for
@@ -81,10 +85,15 @@ pub fn analyse(c: &Compiled, s: &RenderSettings) -> Features {
     let diffuse = used.iter().any(|m| m.kind == MATERIAL_DIFFUSE);
     let conductor = used.iter().any(|m| m.kind == MATERIAL_CONDUCTOR);
     let dielectric = used.iter().any(|m| m.kind == MATERIAL_DIELECTRIC);
+    let plastic = used.iter().any(|m| m.kind == MATERIAL_PLASTIC);
+    let principled = used.iter().any(|m| m.kind == MATERIAL_PRINCIPLED);
     // A conductor always reflects (its Fresnel reflectance is positive at every angle), and a
     // dielectric reflects or lets light through.
+    // A plastic's coating and a principled material's specular lobe reflect too.
     let reflects = conductor
         || dielectric
+        || plastic
+        || principled
         || used.iter().any(|m| m.kind == MATERIAL_DIFFUSE && max_component(xyz(m.albedo)) > 0.0);
     // (Every emissive triangle is in the light table: `emitters` counts them all.) A render
     // without indirect bounces still follows the BSDF sample to an emitter (MIS), so the bounce
@@ -99,6 +108,8 @@ pub fn analyse(c: &Compiled, s: &RenderSettings) -> Features {
         (indirect, FEATURE_INDIRECT),
         (conductor, FEATURE_CONDUCTOR),
         (dielectric, FEATURE_DIELECTRIC),
+        (plastic, FEATURE_PLASTIC),
+        (principled, FEATURE_PRINCIPLED),
     ] {
         if on {
             bits |= bit;
@@ -109,11 +120,17 @@ pub fn analyse(c: &Compiled, s: &RenderSettings) -> Features {
         emitters,
         emitter_power,
         environment: if environment { "constant" } else { "black" },
-        materials: [(diffuse, "diffuse"), (conductor, "conductor"), (dielectric, "dielectric")]
-            .iter()
-            .filter(|m| m.0)
-            .map(|m| m.1)
-            .collect(),
+        materials: [
+            (diffuse, "diffuse"),
+            (conductor, "conductor"),
+            (dielectric, "dielectric"),
+            (plastic, "plastic"),
+            (principled, "principled"),
+        ]
+        .iter()
+        .filter(|m| m.0)
+        .map(|m| m.1)
+        .collect(),
         textures: false,
         alpha_masks: false,
         bounces: s.max_bounces,

@@ -33,7 +33,7 @@ use serde::{Deserialize, Serialize};
 use shared::glam::{DVec3, Vec3, Vec4};
 use shared::layout::{
     KdNode, Light, Material, Triangle, TriangleInfo, KD_MAX_DEPTH, MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC,
-    MATERIAL_DIFFUSE, NO_LIGHT,
+    MATERIAL_DIFFUSE, MATERIAL_PLASTIC, MATERIAL_PRINCIPLED, NO_LIGHT,
 };
 use std::path::Path;
 use xxhash_rust::xxh3::Xxh3;
@@ -450,7 +450,9 @@ fn check_scene(h: &Header, s: &Sections) -> Result<()> {
     }
     let rgb_ok = |v: Vec4| v.truncate().is_finite() && v.truncate().min_element() >= 0.0;
     for (i, m) in materials.iter().enumerate() {
-        if ![MATERIAL_DIFFUSE, MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC].contains(&m.kind) {
+        if ![MATERIAL_DIFFUSE, MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, MATERIAL_PLASTIC, MATERIAL_PRINCIPLED]
+            .contains(&m.kind)
+        {
             bail!("material {i}: unknown kind {}", m.kind);
         }
         if !rgb_ok(m.albedo) || !rgb_ok(m.emission) || !rgb_ok(m.eta) || !rgb_ok(m.k) || !m.params.is_finite() {
@@ -459,7 +461,11 @@ fn check_scene(h: &Header, s: &Sections) -> Result<()> {
         if !(0.0..=1.0).contains(&m.params.x) {
             bail!("material {i}: roughness alpha {} must be within 0..=1", m.params.x);
         }
-        if m.kind == MATERIAL_DIELECTRIC && !(m.params.y > 0.0) {
+        if m.kind == MATERIAL_PRINCIPLED && !(0.0..=1.0).contains(&m.params.z) | !(0.0..=1.0).contains(&m.params.w) {
+            bail!("material {i}: metallic {} and transmission {} must be within 0..=1", m.params.z, m.params.w);
+        }
+        let refracts = [MATERIAL_DIELECTRIC, MATERIAL_PLASTIC, MATERIAL_PRINCIPLED].contains(&m.kind);
+        if refracts && !(m.params.y > 0.0) {
             bail!("material {i}: index of refraction {} must be positive", m.params.y);
         }
     }

@@ -76,6 +76,7 @@ pub fn make_rays(c: &Compiled, s: &RenderSettings, kind: RayKind, traversal: Tra
                 true,
                 u1,
                 u2,
+                0.5,
             )
             .wi;
             let o = offset_ray_origin(surface.p, surface.error, n);

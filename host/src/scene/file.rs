@@ -10,7 +10,7 @@
 use crate::files::Files;
 use crate::scene::obj::{self, DEFAULT_ALBEDO, MAX_COORDINATE};
 use crate::scene::transform::Placement;
-use crate::scene::{conductor, dielectric, diffuse, WorldScene};
+use crate::scene::{conductor, dielectric, diffuse, plastic, principled, Principled, WorldScene};
 use crate::settings::scene::SceneSettings;
 use crate::settings::{SamplerKind, MAX_BOUNCES, MAX_SIDE, MAX_SPP};
 use anyhow::{anyhow, bail, Context, Result};
@@ -83,7 +83,7 @@ pub struct RenderSection {
 pub struct MaterialSection {
     #[serde(rename = "type")]
     pub kind: MaterialKind,
-    /// Diffuse reflectance, linear RGB in 0..=1 (default 0.5 grey).
+    /// Diffuse or plastic: the base's reflectance, linear RGB in 0..=1 (default 0.5 grey).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub albedo: Option<Albedo>,
     /// Emitted radiance from the front (counter-clockwise) side, linear RGB (default none).
@@ -97,12 +97,25 @@ pub struct MaterialSection {
     pub eta: Option<Color>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub k: Option<Color>,
-    /// Conductor: GGX roughness α as Mitsuba's `alpha` (0 or absent: smooth).
+    /// Conductor, dielectric: GGX roughness α as Mitsuba's `alpha` (0 or absent: smooth).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub alpha: Option<Alpha>,
-    /// Dielectric: the index of refraction inside (outside 1); default 1.5.
+    /// Dielectric, plastic coating, principled: the index of refraction inside (outside 1);
+    /// default 1.5.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub ior: Option<Ior>,
+    /// Principled: base colour, linear RGB in 0..=1 (default 0.8 grey).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub base_color: Option<Albedo>,
+    /// Principled: metallic, 0..=1 (default 0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub metallic: Option<Unit>,
+    /// Principled: perceptual roughness, 0..=1 (α = roughness²; default 0.5).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub roughness: Option<Unit>,
+    /// Principled: the fraction of the dielectric base that refracts, 0..=1 (default 0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub transmission: Option<Unit>,
 }
 
 /// A material table as written, before the keys are checked against its type.
@@ -118,49 +131,71 @@ pub struct RawMaterial {
     k: Option<Color>,
     alpha: Option<Alpha>,
     ior: Option<Ior>,
+    base_color: Option<Albedo>,
+    metallic: Option<Unit>,
+    roughness: Option<Unit>,
+    transmission: Option<Unit>,
+}
+
+impl MaterialKind {
+    /// The keys a material of this type takes besides `type` and `emission`.
+    pub fn keys(self) -> &'static [&'static str] {
+        match self {
+            MaterialKind::Diffuse => &["albedo"],
+            MaterialKind::Conductor => &["metal", "eta", "k", "alpha"],
+            MaterialKind::Dielectric => &["ior", "alpha"],
+            MaterialKind::Plastic => &["albedo", "ior"],
+            MaterialKind::Principled => &["base_color", "metallic", "roughness", "transmission", "ior"],
+        }
+    }
 }
 
 impl TryFrom<RawMaterial> for MaterialSection {
     type Error = String;
     fn try_from(r: RawMaterial) -> Result<Self, String> {
-        let conductor_keys = r.metal.is_some() || r.eta.is_some() || r.k.is_some();
-        if r.ior.is_some() && r.kind != MaterialKind::Dielectric {
-            return Err("ior applies to dielectrics (type = \"dielectric\")".into());
+        let given = [
+            ("albedo", r.albedo.is_some()),
+            ("metal", r.metal.is_some()),
+            ("eta", r.eta.is_some()),
+            ("k", r.k.is_some()),
+            ("alpha", r.alpha.is_some()),
+            ("ior", r.ior.is_some()),
+            ("base_color", r.base_color.is_some()),
+            ("metallic", r.metallic.is_some()),
+            ("roughness", r.roughness.is_some()),
+            ("transmission", r.transmission.is_some()),
+        ];
+        let allowed = r.kind.keys();
+        if let Some((key, _)) = given.iter().find(|(key, on)| *on && !allowed.contains(key)) {
+            let hint = match *key {
+                "alpha" if r.kind == MaterialKind::Plastic => {
+                    "; a rough plastic coating is not supported yet (use type = \"principled\" with roughness)"
+                }
+                "alpha" if r.kind == MaterialKind::Principled => {
+                    "; a principled material takes roughness (α = roughness²)"
+                }
+                _ => "",
+            };
+            return Err(format!(
+                "{key} does not apply to a {} material (it takes {} and emission){hint}",
+                String::from(r.kind),
+                allowed.join(", ")
+            ));
         }
-        match r.kind {
-            MaterialKind::Diffuse if conductor_keys || r.alpha.is_some() => {
-                return Err("metal, eta, k and alpha apply to conductors (type = \"conductor\")".into());
-            }
-            MaterialKind::Dielectric => {
-                if conductor_keys || r.albedo.is_some() {
-                    return Err("a dielectric takes ior (and emission), not albedo, metal, eta or k".into());
-                }
-                if r.alpha.is_some_and(|a| a.0 > 0.0) {
-                    return Err("rough dielectrics are not supported yet: alpha must be 0 or absent".into());
+        if r.kind == MaterialKind::Conductor {
+            match (&r.metal, r.eta.is_some(), r.k.is_some()) {
+                (Some(_), false, false) => {}
+                (Some(_), _, _) => return Err("give a conductor either metal or eta and k, not both".into()),
+                (None, true, true) => {}
+                (None, _, _) => {
+                    return Err(format!("a conductor needs metal = \"NAME\" ({}) or both eta and k", preset_names()))
                 }
             }
-            MaterialKind::Conductor => {
-                if r.albedo.is_some() {
-                    return Err("a conductor's colour comes from eta and k (or metal), not albedo".into());
-                }
-                match (&r.metal, r.eta.is_some(), r.k.is_some()) {
-                    (Some(_), false, false) => {}
-                    (Some(_), _, _) => return Err("give a conductor either metal or eta and k, not both".into()),
-                    (None, true, true) => {}
-                    (None, _, _) => {
-                        return Err(format!(
-                            "a conductor needs metal = \"NAME\" ({}) or both eta and k",
-                            preset_names()
-                        ))
-                    }
-                }
-                if let Some(name) = &r.metal {
-                    if preset(name).is_none() {
-                        return Err(format!("unknown metal {name:?} (known: {})", preset_names()));
-                    }
+            if let Some(name) = &r.metal {
+                if preset(name).is_none() {
+                    return Err(format!("unknown metal {name:?} (known: {})", preset_names()));
                 }
             }
-            MaterialKind::Diffuse => {}
         }
         Ok(Self {
             kind: r.kind,
@@ -171,6 +206,10 @@ impl TryFrom<RawMaterial> for MaterialSection {
             k: r.k,
             alpha: r.alpha,
             ior: r.ior,
+            base_color: r.base_color,
+            metallic: r.metallic,
+            roughness: r.roughness,
+            transmission: r.transmission,
         })
     }
 }
@@ -226,6 +265,27 @@ impl TryFrom<f64> for Alpha {
 impl From<Alpha> for f64 {
     fn from(a: Alpha) -> f64 {
         a.0
+    }
+}
+
+/// A fraction within 0..=1 (metallic, roughness, transmission).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "f64", into = "f64")]
+pub struct Unit(pub f64);
+
+impl TryFrom<f64> for Unit {
+    type Error = String;
+    fn try_from(v: f64) -> Result<Self, String> {
+        if !(0.0..=1.0).contains(&v) {
+            return Err(format!("{v} must be within 0..=1"));
+        }
+        Ok(Self(v))
+    }
+}
+
+impl From<Unit> for f64 {
+    fn from(v: Unit) -> f64 {
+        v.0
     }
 }
 
@@ -466,8 +526,7 @@ impl Scale {
     }
 }
 
-/// Material models. The names of the physically based models still to come are reserved so that
-/// a file using them fails clearly instead of rendering diffuse.
+/// Material models (`shared::material`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(try_from = "String", into = "String")]
 pub enum MaterialKind {
@@ -475,9 +534,9 @@ pub enum MaterialKind {
     Diffuse,
     Conductor,
     Dielectric,
+    Plastic,
+    Principled,
 }
-
-const RESERVED_MATERIALS: [&str; 2] = ["plastic", "principled"];
 
 impl TryFrom<String> for MaterialKind {
     type Error = String;
@@ -486,13 +545,14 @@ impl TryFrom<String> for MaterialKind {
             "diffuse" => Ok(MaterialKind::Diffuse),
             "conductor" => Ok(MaterialKind::Conductor),
             "dielectric" => Ok(MaterialKind::Dielectric),
+            "plastic" => Ok(MaterialKind::Plastic),
+            "principled" => Ok(MaterialKind::Principled),
             "roughconductor" => Err("use type = \"conductor\" with alpha for a rough conductor".into()),
-            r if RESERVED_MATERIALS.contains(&r) => Err(format!(
-                "material type {r:?} is not supported yet (reserved for the physically based materials to come)"
+            "roughdielectric" => Err("use type = \"dielectric\" with alpha for a rough dielectric".into()),
+            "roughplastic" => Err("a rough plastic coating is not supported yet; type = \"plastic\" is smooth".into()),
+            other => Err(format!(
+                "unknown material type {other:?} (expected \"diffuse\", \"conductor\", \"dielectric\", \"plastic\" or \"principled\")"
             )),
-            other => {
-                Err(format!("unknown material type {other:?} (expected \"diffuse\", \"conductor\" or \"dielectric\")"))
-            }
         }
     }
 }
@@ -503,6 +563,8 @@ impl From<MaterialKind> for String {
             MaterialKind::Diffuse => "diffuse".into(),
             MaterialKind::Conductor => "conductor".into(),
             MaterialKind::Dielectric => "dielectric".into(),
+            MaterialKind::Plastic => "plastic".into(),
+            MaterialKind::Principled => "principled".into(),
         }
     }
 }
@@ -581,7 +643,24 @@ fn scene_material(m: &MaterialSection) -> Material {
             };
             conductor(eta, k, m.alpha.map_or(0.0, |a| a.0 as f32), emission)
         }
-        MaterialKind::Dielectric => dielectric(m.ior.map_or(DEFAULT_IOR, |i| i.0 as f32), emission),
+        MaterialKind::Dielectric => {
+            dielectric(m.ior.map_or(DEFAULT_IOR, |i| i.0 as f32), m.alpha.map_or(0.0, |a| a.0 as f32), emission)
+        }
+        MaterialKind::Plastic => plastic(
+            m.albedo.map_or(Vec3::splat(DEFAULT_ALBEDO), |a| vec3_of(a.0)),
+            m.ior.map_or(DEFAULT_IOR, |i| i.0 as f32),
+            emission,
+        ),
+        MaterialKind::Principled => principled(
+            &Principled {
+                base_color: m.base_color.map_or(Vec3::splat(0.8), |a| vec3_of(a.0)),
+                metallic: m.metallic.map_or(0.0, |v| v.0 as f32),
+                roughness: m.roughness.map_or(0.5, |v| v.0 as f32),
+                transmission: m.transmission.map_or(0.0, |v| v.0 as f32),
+                ior: m.ior.map_or(DEFAULT_IOR, |i| i.0 as f32),
+            },
+            emission,
+        ),
     }
 }
 

@@ -13,7 +13,8 @@ pub mod transform;
 use anyhow::{bail, Result};
 use shared::glam::{DVec3, Vec3, Vec4};
 use shared::layout::{
-    Light, Material, Triangle, TriangleInfo, MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, MATERIAL_DIFFUSE, NO_LIGHT,
+    Light, Material, Triangle, TriangleInfo, MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, MATERIAL_DIFFUSE,
+    MATERIAL_PLASTIC, MATERIAL_PRINCIPLED, NO_LIGHT,
 };
 use shared::material::is_emissive;
 use shared::triangle::area;
@@ -89,9 +90,35 @@ pub fn conductor(eta: Vec3, k: Vec3, alpha: f32, emission: Vec3) -> Material {
     }
 }
 
-/// A smooth dielectric of index of refraction `ior` inside (outside 1).
-pub fn dielectric(ior: f32, emission: Vec3) -> Material {
-    Material { kind: MATERIAL_DIELECTRIC, params: Vec4::new(0.0, ior, 0.0, 0.0), ..diffuse(Vec3::ZERO, emission) }
+/// A dielectric of index of refraction `ior` inside (outside 1), GGX roughness `alpha` (0: smooth).
+pub fn dielectric(ior: f32, alpha: f32, emission: Vec3) -> Material {
+    Material { kind: MATERIAL_DIELECTRIC, params: Vec4::new(alpha, ior, 0.0, 0.0), ..diffuse(Vec3::ZERO, emission) }
+}
+
+/// Plastic: a diffuse base of reflectance `albedo` under a smooth coating of index `ior`.
+pub fn plastic(albedo: Vec3, ior: f32, emission: Vec3) -> Material {
+    let (over_pi, scale) = shared::material::plastic_scale(ior);
+    Material { kind: MATERIAL_PLASTIC, params: Vec4::new(0.0, ior, over_pi, scale), ..diffuse(albedo, emission) }
+}
+
+/// The parameters of a glTF metallic-roughness material (`shared::material::principled`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Principled {
+    pub base_color: Vec3,
+    pub metallic: f32,
+    /// Perceptual roughness: α = roughness².
+    pub roughness: f32,
+    pub transmission: f32,
+    pub ior: f32,
+}
+
+/// A glTF metallic-roughness material.
+pub fn principled(p: &Principled, emission: Vec3) -> Material {
+    Material {
+        kind: MATERIAL_PRINCIPLED,
+        params: Vec4::new(p.roughness * p.roughness, p.ior, p.metallic, p.transmission),
+        ..diffuse(p.base_color, emission)
+    }
 }
 
 impl Scene {

@@ -11,7 +11,7 @@
 //! Format reference: Wavefront's "Object Files (.obj)" and "MTL material format" appendices
 //! (<https://paulbourke.net/dataformats/obj/>, <https://paulbourke.net/dataformats/mtl/>).
 use crate::files::{Disk, Files};
-use crate::scene::{conductor, dielectric, diffuse, Scene, WorldScene};
+use crate::scene::{conductor, dielectric, diffuse, principled, Principled, Scene, WorldScene};
 use anyhow::{anyhow, bail, Context, Result};
 use shared::glam::{DVec3, Vec3};
 use std::borrow::Cow;
@@ -126,7 +126,14 @@ fn scan_lines(path: &Path, text: &str) -> Result<Scan> {
 /// conductor reflecting `Ks` at normal incidence (η = 1 and κ = 2√(Ks/(1 − Ks)) per channel,
 /// whose Fresnel reflectance at normal incidence is Ks; Ks ≥ 1 a perfect mirror); 4, 6 and 7
 /// (glass) a smooth dielectric of index `Ni` (1.5 when absent; `Tf` and `Ks` tints are not
-/// modelled); anything else Lambertian `Kd`. `Ke` emits from every kind.
+/// modelled). Any other: with the PBR extension's `Pr` (roughness) or `Pm` (metallic), a
+/// principled material of base colour `Kd`, index `Ni` (default 1.5), roughness `Pr` (default
+/// 0.5) and metallic `Pm` (default 0); with a non-black `Ks`, a principled dielectric whose
+/// specular lobe reflects Ks at normal incidence (its luminance, at most 0.96, as F0, so
+/// η = (1 + √F0)/(1 − √F0)) with the GGX α of a Phong exponent `Ns`, √(2/(Ns + 2)) (Walter et
+/// al. 2007's Phong–Beckmann correspondence), over the Lambertian `Kd`: the coating takes from
+/// the diffuse what it reflects, so Kd + Ks > 1 stays energy-conserving; else Lambertian `Kd`.
+/// `Ke` emits from every kind.
 fn mtl_material(m: &tobj::Material, kd: Vec3, ke: Vec3) -> shared::layout::Material {
     match m.illumination_model {
         Some(3 | 5) => {
@@ -144,10 +151,38 @@ fn mtl_material(m: &tobj::Material, kd: Vec3, ke: Vec3) -> shared::layout::Mater
         }
         Some(4 | 6 | 7) => {
             let ni = m.optical_density.filter(|n| n.is_finite() && *n > 0.0).unwrap_or(1.5);
-            dielectric(ni as f32, ke)
+            dielectric(ni as f32, 0.0, ke)
         }
-        _ => diffuse(kd, ke),
+        _ => {
+            // `check_mtl_lines` has checked that these parse and lie within 0..=1.
+            let pbr = |key: &str| m.unknown_param.get(key).and_then(|v| v.trim().parse::<f32>().ok());
+            let (pr, pm) = (pbr("Pr"), pbr("Pm"));
+            let ks = m.specular.map_or(Vec3::ZERO, |c| Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32));
+            if pr.is_some() || pm.is_some() {
+                let ni = m.optical_density.filter(|n| n.is_finite() && (1e-3..=100.0).contains(n)).unwrap_or(1.5);
+                let p = Principled {
+                    base_color: kd,
+                    metallic: pm.unwrap_or(0.0),
+                    roughness: pr.unwrap_or(0.5),
+                    transmission: 0.0,
+                    ior: ni as f32,
+                };
+                principled(&p, ke)
+            } else if ks.max_element() > 0.0 {
+                principled(&phong_specular(kd, ks, m.shininess.unwrap_or(0.0) as f32), ke)
+            } else {
+                diffuse(kd, ke)
+            }
+        }
     }
+}
+
+/// The principled dielectric `mtl_material` makes of `Kd`, `Ks` and `Ns` (documented there).
+pub fn phong_specular(kd: Vec3, ks: Vec3, ns: f32) -> Principled {
+    let f0 = shared::vecmath::luminance(ks).clamp(0.0, 0.96);
+    let r = f0.sqrt();
+    let alpha = (2.0 / (ns.max(0.0) + 2.0)).sqrt();
+    Principled { base_color: kd, metallic: 0.0, roughness: alpha.sqrt(), transmission: 0.0, ior: (1.0 + r) / (1.0 - r) }
 }
 
 /// Checks that every colour statement (`Ka`, `Kd`, `Ks`, `Ke`) has three numbers: tobj 4
@@ -162,6 +197,24 @@ fn check_mtl_lines(path: &Path, text: &str) -> Result<()> {
         let key = words.next();
         if key == Some("newmtl") {
             material = words.next().unwrap_or("");
+            continue;
+        }
+        if let Some(key @ ("Pr" | "Pm" | "Ns")) = key {
+            let values: Vec<&str> = words.collect();
+            let x = values.first().and_then(|v| v.parse::<f32>().ok());
+            let ok = match (values.len(), x) {
+                (1, Some(x)) if key == "Ns" => x.is_finite() && x >= 0.0,
+                (1, Some(x)) => (0.0..=1.0).contains(&x),
+                _ => false,
+            };
+            if !ok {
+                let range = if key == "Ns" { "finite and non-negative" } else { "within 0..=1" };
+                bail!(
+                    "{}:{}: material {material:?}: {key} needs one number, {range}: {line:?}",
+                    path.display(),
+                    number + 1
+                );
+            }
             continue;
         }
         let Some(key @ ("Ka" | "Kd" | "Ks" | "Ke")) = key else { continue };

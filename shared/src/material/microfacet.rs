@@ -36,6 +36,20 @@ pub fn ggx_g1(alpha: f32, w: Vec3, m: Vec3) -> f32 {
     2.0 * w.z / (w.z + root)
 }
 
+/// Smith's masking for a direction on either side of the surface (a refracted one below it):
+/// `ggx_g1` of w mirrored to the upper side, 0 when w sees the side of m it is not on
+/// ((w·m)·w_z ≤ 0, Mitsuba's `smith_g1` side test).
+#[inline]
+pub fn ggx_g1_two_sided(alpha: f32, w: Vec3, m: Vec3) -> f32 {
+    if dot(w, m) * w.z <= 0.0 {
+        return 0.0;
+    }
+    let z = w.z.abs();
+    let a2 = alpha * alpha;
+    let root = (a2 * (w.x * w.x + w.y * w.y) + z * z).sqrt();
+    2.0 * z / (z + root)
+}
+
 /// A microfacet normal visible from `w` (w_z > 0), with density D_w(m) = G1(w, m)·(w·m)·D(m)/w_z.
 /// The disk point comes from the concentric map, so both devices compute it with the same
 /// polynomials (`trig`).

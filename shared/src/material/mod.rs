@@ -15,15 +15,23 @@ mod dielectric;
 mod diffuse;
 mod frame;
 mod microfacet;
+mod plastic;
+mod principled;
 
 pub use conductor::{fresnel_conductor, CONDUCTOR_PRESETS};
-pub use dielectric::fresnel_dielectric;
+pub use dielectric::{fresnel_dielectric, refract};
 pub use frame::Frame;
-pub use microfacet::{ggx_d, ggx_g1, ggx_sample_visible, ggx_visible_pdf};
+pub use microfacet::{ggx_d, ggx_g1, ggx_g1_two_sided, ggx_sample_visible, ggx_visible_pdf};
+pub use plastic::{fresnel_diffuse_reflectance, plastic_scale};
+pub use principled::PRINCIPLED_MIN_ALPHA;
 
-use crate::features::{Variant, FEATURE_CONDUCTOR, FEATURE_DIELECTRIC, FEATURE_DIFFUSE};
+use crate::features::{
+    Variant, FEATURE_CONDUCTOR, FEATURE_DIELECTRIC, FEATURE_DIFFUSE, FEATURE_PLASTIC, FEATURE_PRINCIPLED,
+};
 use crate::glam::Vec3;
-use crate::layout::{Material, MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, MATERIAL_DIFFUSE};
+use crate::layout::{
+    Material, MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, MATERIAL_DIFFUSE, MATERIAL_PLASTIC, MATERIAL_PRINCIPLED,
+};
 use crate::vecmath::{dot, xyz};
 
 /// The pdf a delta lobe reports: the largest f32, whose square overflows, so that it takes the
@@ -31,7 +39,8 @@ use crate::vecmath::{dot, xyz};
 pub const DELTA_PDF: f32 = f32::MAX;
 
 /// A direction sampled from a BSDF with its weight f·|cos|/pdf and its solid-angle pdf
-/// (`DELTA_PDF` for a delta lobe).
+/// (`DELTA_PDF` for a delta lobe). (Never returned in a tuple: naga rounds this struct's size up
+/// to 32 bytes and refuses a member placed after its 28.)
 #[derive(Clone, Copy)]
 pub struct BsdfSample {
     pub wi: Vec3,
@@ -52,20 +61,32 @@ fn is(v: Variant, m: &Material, kind: u32, bit: u32) -> bool {
 
 /// BSDF value f(wo, wi) (without the cosine) and the pdf of `sample` choosing `wi`.
 #[inline]
-pub fn eval(v: Variant, m: &Material, n: Vec3, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+pub fn eval(v: Variant, m: &Material, n: Vec3, wo: Vec3, wi: Vec3, front: bool) -> (Vec3, f32) {
     if is(v, m, MATERIAL_DIFFUSE, FEATURE_DIFFUSE) {
         return diffuse::eval(m, n, wi);
     }
     if is(v, m, MATERIAL_CONDUCTOR, FEATURE_CONDUCTOR) {
         return conductor::eval(m, n, wo, wi);
     }
+    if is(v, m, MATERIAL_DIELECTRIC, FEATURE_DIELECTRIC) {
+        return dielectric::eval(m, n, wo, wi, front);
+    }
+    if is(v, m, MATERIAL_PLASTIC, FEATURE_PLASTIC) {
+        return plastic::eval(m, n, wo, wi);
+    }
+    if is(v, m, MATERIAL_PRINCIPLED, FEATURE_PRINCIPLED) {
+        return principled::eval(m, n, wo, wi, front);
+    }
     (Vec3::ZERO, 0.0)
 }
 
-/// Samples `wi` for outgoing direction `wo` from uniforms `u1`, `u2`; `front`: the ray arrived on
-/// the counter-clockwise (outside) side, which a dielectric needs to know which medium is which.
+/// Samples `wi` for outgoing direction `wo` from uniforms `u1`, `u2` (the direction) and `u3`
+/// (the lobe, where there is a choice); `front`: the ray arrived on the counter-clockwise
+/// (outside) side, which a dielectric needs to know which medium is which. `u3` must be
+/// independent of `u1`, `u2` (`rng::Sampler::independent_after`) where `picks_lobe`.
 #[inline]
-pub fn sample(v: Variant, m: &Material, n: Vec3, wo: Vec3, front: bool, u1: f32, u2: f32) -> BsdfSample {
+#[allow(clippy::too_many_arguments)]
+pub fn sample(v: Variant, m: &Material, n: Vec3, wo: Vec3, front: bool, u1: f32, u2: f32, u3: f32) -> BsdfSample {
     if is(v, m, MATERIAL_DIFFUSE, FEATURE_DIFFUSE) {
         return diffuse::sample(m, n, u1, u2);
     }
@@ -73,7 +94,13 @@ pub fn sample(v: Variant, m: &Material, n: Vec3, wo: Vec3, front: bool, u1: f32,
         return conductor::sample(m, n, wo, u1, u2);
     }
     if is(v, m, MATERIAL_DIELECTRIC, FEATURE_DIELECTRIC) {
-        return dielectric::sample(m, n, wo, front, u1);
+        return dielectric::sample(m, n, wo, front, u1, u2, u3);
+    }
+    if is(v, m, MATERIAL_PLASTIC, FEATURE_PLASTIC) {
+        return plastic::sample(m, n, wo, u1, u2, u3);
+    }
+    if is(v, m, MATERIAL_PRINCIPLED, FEATURE_PRINCIPLED) {
+        return principled::sample(m, n, wo, front, u1, u2, u3);
     }
     BsdfSample::NONE
 }
@@ -81,18 +108,29 @@ pub fn sample(v: Variant, m: &Material, n: Vec3, wo: Vec3, front: bool, u1: f32,
 /// Whether every lobe of `m` is a delta (a smooth mirror): light sampling cannot hit it.
 #[inline]
 pub fn is_delta(v: Variant, m: &Material) -> bool {
-    (is(v, m, MATERIAL_CONDUCTOR, FEATURE_CONDUCTOR) & (m.params.x == 0.0))
-        | is(v, m, MATERIAL_DIELECTRIC, FEATURE_DIELECTRIC)
+    (is(v, m, MATERIAL_CONDUCTOR, FEATURE_CONDUCTOR) | is(v, m, MATERIAL_DIELECTRIC, FEATURE_DIELECTRIC))
+        & (m.params.x == 0.0)
+}
+
+/// Whether sampling `m` picks a lobe with its third uniform (`sample`'s `u3`): a rough
+/// dielectric, plastic, principled.
+#[inline]
+pub fn picks_lobe(v: Variant, m: &Material) -> bool {
+    (is(v, m, MATERIAL_DIELECTRIC, FEATURE_DIELECTRIC) & (m.params.x > 0.0))
+        | is(v, m, MATERIAL_PLASTIC, FEATURE_PLASTIC)
+        | is(v, m, MATERIAL_PRINCIPLED, FEATURE_PRINCIPLED)
 }
 
 /// Whether `m` may send a path through the surface (the next ray starts on the far side).
 #[inline]
 pub fn transmits(v: Variant, m: &Material) -> bool {
     is(v, m, MATERIAL_DIELECTRIC, FEATURE_DIELECTRIC)
+        | (is(v, m, MATERIAL_PRINCIPLED, FEATURE_PRINCIPLED) & (m.params.w > 0.0))
 }
 
-/// The material's colour for an albedo image: a diffuse albedo, a conductor's reflectance at
-/// normal incidence, a dielectric's white (it lets everything through or reflects it).
+/// The material's colour for an albedo image: a diffuse, plastic or principled material's base
+/// colour, a conductor's reflectance at normal incidence, a dielectric's white (it lets
+/// everything through or reflects it).
 #[inline]
 pub fn albedo(v: Variant, m: &Material) -> Vec3 {
     if is(v, m, MATERIAL_CONDUCTOR, FEATURE_CONDUCTOR) {

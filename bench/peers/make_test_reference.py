@@ -3,7 +3,8 @@
 block a rough gold conductor, Mitsuba's `roughconductor` with GGX α 0.2, visible-normal sampling
 and kdtrace's Au η and κ, two-sided as kdtrace's materials are; with `glass`,
 tests/data/cornell-materials/cornell-glass-mitsuba-32.exr: the tall block a rough dielectric,
-`roughdielectric` GGX α 0.2, int_ior 1.5, ext_ior 1; with `plastic`,
+`roughdielectric` GGX α 0.2, int_ior 1.5, ext_ior 1 (`smooth-glass`: `dielectric`, the same
+indices, into cornell-smooth-glass-mitsuba-32.exr); with `plastic`,
 tests/data/cornell-materials/cornell-plastic-mitsuba-32.exr: the tall block `plastic` with
 diffuse_reflectance (0.7, 0.25, 0.1), int_ior 1.5, ext_ior 1, nonlinear false, two-sided).
 
@@ -47,8 +48,8 @@ AU_K = [3.983160, 2.385721, 1.603215]
 def main():
     mi.set_variant("llvm_ad_rgb")
     mode = sys.argv[1] if len(sys.argv) > 1 else "box"
-    if mode not in ("box", "metal", "glass", "plastic"):
-        sys.exit(f"unknown mode {mode!r}: box, metal, glass or plastic")
+    if mode not in ("box", "metal", "glass", "smooth-glass", "plastic"):
+        sys.exit(f"unknown mode {mode!r}: box, metal, glass, smooth-glass or plastic")
     box = os.path.join(ROOT, "scenes", "cornell-box.obj")
     block = os.path.join(ROOT, "tests", "data", "cornell-metal", "cornell-metal.obj")
     obj = box if mode == "box" else block
@@ -60,6 +61,8 @@ def main():
     elif mode == "glass":
         bsdfs["gold"] = {"type": "roughdielectric", "distribution": "ggx", "alpha": 0.2, "sample_visible": True,
                          "int_ior": 1.5, "ext_ior": 1.0}
+    elif mode == "smooth-glass":
+        bsdfs["gold"] = {"type": "dielectric", "int_ior": 1.5, "ext_ior": 1.0}
     elif mode == "plastic":
         plastic = {"type": "plastic", "diffuse_reflectance": {"type": "rgb", "value": [0.7, 0.25, 0.1]},
                    "int_ior": 1.5, "ext_ior": 1.0, "nonlinear": False}
@@ -82,6 +85,7 @@ def main():
         "box": (os.path.join(ROOT, "tests", "data"), "cornell-box-mitsuba-32"),
         "metal": (os.path.join(ROOT, "tests", "data", "cornell-metal"), "cornell-metal-mitsuba-32"),
         "glass": (os.path.join(ROOT, "tests", "data", "cornell-materials"), "cornell-glass-mitsuba-32"),
+        "smooth-glass": (os.path.join(ROOT, "tests", "data", "cornell-materials"), "cornell-smooth-glass-mitsuba-32"),
         "plastic": (os.path.join(ROOT, "tests", "data", "cornell-materials"), "cornell-plastic-mitsuba-32"),
     }[mode]
     os.makedirs(out, exist_ok=True)

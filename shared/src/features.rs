@@ -23,8 +23,16 @@ pub const FEATURE_INDIRECT: u32 = 1 << 4;
 pub const FEATURE_CONDUCTOR: u32 = 1 << 5;
 /// Dielectrics (`material::dielectric`) are present.
 pub const FEATURE_DIELECTRIC: u32 = 1 << 6;
+// Bits 7 and 8 are reserved for the plastic and principled material kinds.
+/// Some material has a texture map (`surface::resolve` fetches texels at each hit).
+pub const FEATURE_TEXTURES: u32 = 1 << 9;
+/// Some material has an alpha mask: hits are tested against it (`surface::cut_out`) in every
+/// traversal.
+pub const FEATURE_ALPHA_MASKS: u32 = 1 << 10;
+/// Some triangle has vertex normals: shading interpolates them (`surface::shading_normal`).
+pub const FEATURE_VERTEX_NORMALS: u32 = 1 << 11;
 /// Every feature: the generic code, which serves any scene.
-pub const FEATURES_ALL: u32 = (1 << 7) - 1;
+pub const FEATURES_ALL: u32 = (1 << 12) - 1;
 /// The material-kind bits: when exactly one is set, material dispatch is skipped.
 pub const FEATURE_MATERIALS: u32 = FEATURE_DIFFUSE | FEATURE_CONDUCTOR | FEATURE_DIELECTRIC;
 

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Regenerates tests/data/cornell-box-mitsuba-32{,-stderr}.exr, or with `metal`
-# tests/data/cornell-metal/cornell-metal-mitsuba-32{,-stderr}.exr (see make_test_reference.py), with
+# tests/data/cornell-metal/cornell-metal-mitsuba-32{,-stderr}.exr, or with `textured`
+# tests/data/cornell-textured/cornell-textured-mitsuba-32{,-stderr}.exr (see make_test_reference.py), with
 # the venv and LLVM that bench/peers.sh sets up. About 2-4 minutes on 2 cores.
 set -euo pipefail
 cd "$(dirname "$0")/../.."

@@ -8,9 +8,13 @@ use kdtrace::settings::camera::Camera;
 use kdtrace::settings::{Aov, RenderSettings, Traversal};
 use shared::glam::{DVec3, Vec3, Vec4};
 use shared::layout::{
-    NO_TEXTURE, TEXTURE_ALBEDO, TEXTURE_ALPHA, TEXTURE_EMISSION, TEXTURE_METALLIC, TEXTURE_ROUGHNESS,
+    RayQuery, RayResult, NO_TEXTURE, RAY_ALPHA_MASKS, RAY_ANY_HIT, RAY_SHORT_STACK, TEXTURE_ALBEDO, TEXTURE_ALPHA,
+    TEXTURE_EMISSION, TEXTURE_METALLIC, TEXTURE_ROUGHNESS,
 };
 use std::path::{Path, PathBuf};
+
+#[path = "common/kdc_craft.rs"]
+mod craft;
 
 fn none(_: u64, _: u64) {}
 
@@ -200,6 +204,31 @@ fn alpha_cut_outs_let_every_ray_through() {
         let a = render_everywhere(&cut, &s, &g);
         assert!(bits(&a) == bits(&cpu::render(&no_quad, &s, &none).unwrap()));
         render_everywhere(&half, &s, &g);
+    }
+    // Ray batches: with RAY_ALPHA_MASKS a ray through the cut-out half reaches the wall, on the
+    // CPU and on lavapipe alike; without, it stops at the quad.
+    let params = half.bounds_params();
+    let view = half.view(&params);
+    let ray = |x: f32, flags: u32| RayQuery {
+        origin: Vec4::new(x, 0.3, 3.0, 0.0),
+        dir: Vec4::new(0.0, 0.0, -1.0, 0.0),
+        t_max: f32::MAX,
+        flags,
+        _pad: [0; 2],
+    };
+    let rays: Vec<RayQuery> = [0, RAY_SHORT_STACK, RAY_ANY_HIT]
+        .iter()
+        .flat_map(|&f| [ray(-0.5, f), ray(-0.5, f | RAY_ALPHA_MASKS), ray(0.5, f | RAY_ALPHA_MASKS)])
+        .collect();
+    let on_cpu: Vec<RayResult> = rays.iter().map(|q| shared::raycast::cast_ray(&view, q)).collect();
+    assert_eq!(on_cpu, g.cast(&half, &rays).unwrap());
+    for (k, r) in on_cpu.chunks(3).enumerate() {
+        // The quad at z = 0 (t = 3), the wall behind the cut-out (t = 4), the quad's opaque half
+        // (an any-hit query, the last group, may stop at any hit that counts).
+        assert_eq!(r[1].t, 4.0, "{r:?}");
+        if k < 2 {
+            assert_eq!([r[0].t, r[2].t], [3.0, 3.0], "{r:?}");
+        }
     }
     // Half cut out (u < 1/2): the camera sees the wall through the left half, the quad on the
     // right. Rows near the middle only (the lamp hides the centre).
@@ -397,6 +426,19 @@ fn scene_files_take_an_albedo_texture() {
     for p in cpu::render(c, &s, &none).unwrap().mean() {
         assert!((p[2] - 1.0).abs() < 1e-3 && p[0].abs() < 1e-3, "{p:?}");
     }
+    // `export` moves the texture's path with the file.
+    let out = dir.join("elsewhere");
+    std::fs::create_dir_all(&out).unwrap();
+    let exported = out.join("exported.toml");
+    let export = std::process::Command::new(env!("CARGO_BIN_EXE_kdtrace"))
+        .args(["export", path.to_str().unwrap(), "--out", exported.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(export.status.success(), "{}", String::from_utf8_lossy(&export.stderr));
+    let text = std::fs::read_to_string(&exported).unwrap();
+    assert!(text.contains("albedo_texture = \"../textures/blue.png\""), "{text}");
+    let again = load(&exported);
+    assert_eq!(again.scene.textures, c.scene.textures);
     let path = scene("albedo_texture = \"textures/nothere.png\"");
     let e = format!("{:#}", kdtrace::load(&path, BuildSettings::default()).err().unwrap());
     assert!(e.contains("nothere.png") && e.contains("scene.toml:9:18"), "{e}");
@@ -432,4 +474,31 @@ fn compiled_scenes_keep_textures_and_attributes() {
             assert!(bits(&a) == bits(&b), "{}: {aov:?}", path.display());
         }
     }
+}
+
+/// A crafted `.kdc` whose material names a texture beyond the table, whose table points past the
+/// texels, or whose vertex attributes are not finite is refused, naming the problem.
+#[test]
+fn compiled_scenes_with_bad_textures_or_attributes_are_refused() {
+    let dir = folder("kdc-crafted");
+    let source = load(&textured_quad(&dir, "quadrants.png"));
+    let path = dir.join("quad.kdc");
+    kdc::write(&path, &source, &BuildSettings::default(), &Default::default()).unwrap();
+    let good = std::fs::read(&path).unwrap();
+    // The texture slots sit after kind, padding and six Vec4s.
+    let slots = 16 + 6 * 16;
+    type Edit = Box<dyn Fn(&mut craft::Parts)>;
+    let edits: [(&str, Edit); 4] = [
+        ("texture 99 out of range", Box::new(move |p| craft::put_u32(p, craft::section_offset(p, 2) + slots, 99))),
+        ("outside the buffer", Box::new(|p| craft::put_u32(p, craft::section_offset(p, 7), 1 << 20))),
+        ("not a valid texture", Box::new(|p| craft::put_u32(p, craft::section_offset(p, 7) + 4, 0))),
+        ("vertex attributes not finite", Box::new(|p| craft::put_f32(p, craft::section_offset(p, 6) + 4, f32::NAN))),
+    ];
+    for (want, edit) in edits {
+        let mut parts = craft::split(&good);
+        edit(&mut parts);
+        let e = format!("{:#}", kdc::decode(&path, &craft::join(&parts)).err().expect(want));
+        assert!(e.contains(want) && e.contains("quad.kdc"), "{want}: {e}");
+    }
+    assert!(kdc::decode(&path, &craft::join(&craft::split(&good))).is_ok());
 }

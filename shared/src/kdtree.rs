@@ -238,6 +238,17 @@ pub fn test_leaf_blocks(
     let mut k = start / BLOCK_WIDTH;
     let past = if start == end { k } else { end.div_ceil(BLOCK_WIDTH) };
     let mut done = false;
+    if !scene.alpha_masks {
+        // No masks: one block test per block (the loop below, without its retests).
+        while (k < past) & !done {
+            if let Some((lane, h)) = shear.intersect_block(&scene.blocks[k as usize], ALL_LANES, 0.0, best.t, any_hit) {
+                let id = scene.indices[(k * BLOCK_WIDTH + lane) as usize];
+                *best = Hit { t: h.t, triangle: id, u: h.u, v: h.v, w: h.w, nodes: 0, tests: 0 };
+                done = any_hit;
+            }
+            k += 1;
+        }
+    }
     while (k < past) & !done {
         // A lane whose hit its alpha mask cuts out leaves the mask and the block is tested again:
         // the next closest (or next) lane, as `test_leaf_each` finds it.

@@ -288,6 +288,9 @@ pub const AOV_NORMAL: u32 = 3;
 pub const RAY_ANY_HIT: u32 = 1;
 /// `RayQuery::flags`: traverse with the short stack instead of the full one.
 pub const RAY_SHORT_STACK: u32 = 2;
+/// `RayQuery::flags`: test hits against alpha masks (`surface::cut_out`); set by the host for a
+/// scene that has masks, so ray batches of other scenes skip the material lookup per hit.
+pub const RAY_ALPHA_MASKS: u32 = 4;
 
 /// One ray of a batch cast without shading: the ray-casting kernel, the CPU ≡ GPU traversal
 /// check and the rays/s benchmarks read these.

@@ -34,20 +34,20 @@ use crate::vecmath::{dot, length_squared, normalize, xyz};
 
 /// Barycentric weights (b0, b1, b2) of v0, v1, v2 from a hit's unnormalised weights: the same
 /// operations as `triangle::hit_point`, so the point and its attributes agree.
-#[inline]
+#[inline(always)]
 pub fn weights(u: f32, v: f32, w: f32) -> (f32, f32, f32) {
     let inv = 1.0 / (u + v + w);
     (u * inv, v * inv, w * inv)
 }
 
 /// A hit's barycentric weights.
-#[inline]
+#[inline(always)]
 pub fn hit_weights(hit: &Hit) -> (f32, f32, f32) {
     weights(hit.u, hit.v, hit.w)
 }
 
 /// Texture coordinates of triangle `tri` at weights `b`; (0, 0) where it has none.
-#[inline]
+#[inline(always)]
 pub fn uv_at(scene: &SceneView, tri: u32, b: (f32, f32, f32)) -> Vec2 {
     if (tri as usize) < scene.attributes.len() {
         let a = &scene.attributes[tri as usize];
@@ -61,7 +61,7 @@ pub fn uv_at(scene: &SceneView, tri: u32, b: (f32, f32, f32)) -> Vec2 {
 
 /// The vertex normals of `tri` interpolated at weights `b`, not normalised; zero where the
 /// triangle has none.
-#[inline]
+#[inline(always)]
 pub fn interpolated_normal(scene: &SceneView, tri: u32, b: (f32, f32, f32)) -> Vec3 {
     if (tri as usize) < scene.attributes.len() {
         let a = &scene.attributes[tri as usize];
@@ -80,7 +80,7 @@ pub fn interpolated_normal(scene: &SceneView, tri: u32, b: (f32, f32, f32)) -> V
 /// toward the arriving ray) where the triangle has no vertex normals, where they cancel, or where
 /// `wo` (toward the viewer) lies below the interpolated normal; otherwise the interpolated normal
 /// on `flat`'s side (module docs).
-#[inline]
+#[inline(always)]
 pub fn shading_normal(scene: &SceneView, v: Variant, tri: u32, b: (f32, f32, f32), flat: Vec3, wo: Vec3) -> Vec3 {
     let mut ns = flat;
     if v.has(FEATURE_VERTEX_NORMALS) {
@@ -99,14 +99,14 @@ pub fn shading_normal(scene: &SceneView, v: Variant, tri: u32, b: (f32, f32, f32
 /// Whether direction `wi` lies on the same side of the flat normal as of the shading normal `ns`
 /// (always, when the two are the same): a direction for which they disagree carries no light
 /// (module docs).
-#[inline]
+#[inline(always)]
 pub fn consistent(v: Variant, flat: Vec3, ns: Vec3, wi: Vec3) -> bool {
     !v.has(FEATURE_VERTEX_NORMALS) | ((dot(flat, wi) > 0.0) == (dot(ns, wi) > 0.0))
 }
 
 /// `m` with its textures looked up at weights `b` on triangle `tri` (module docs); `m` itself
 /// when it has none or the variant has no textures.
-#[inline]
+#[inline(always)]
 pub fn resolve(scene: &SceneView, v: Variant, m: &Material, tri: u32, b: (f32, f32, f32)) -> Material {
     let mut r = *m;
     if v.has(FEATURE_TEXTURES) {
@@ -143,7 +143,7 @@ pub fn resolve(scene: &SceneView, v: Variant, m: &Material, tri: u32, b: (f32, f
 
 /// The emitted radiance of `m` on triangle `tri` at weights `b` (its emission texture there,
 /// or its constant): what light sampling picks up from a point it chose on a lamp.
-#[inline]
+#[inline(always)]
 pub fn emission_at(scene: &SceneView, v: Variant, m: &Material, tri: u32, b: (f32, f32, f32)) -> Vec3 {
     let mut e = xyz(m.emission);
     if v.has(FEATURE_TEXTURES) & (m.textures[TEXTURE_EMISSION] != NO_TEXTURE) {
@@ -154,7 +154,7 @@ pub fn emission_at(scene: &SceneView, v: Variant, m: &Material, tri: u32, b: (f3
 }
 
 /// The material of the triangle hit, resolved at the hit (`resolve`).
-#[inline]
+#[inline(always)]
 pub fn material_at(scene: &SceneView, v: Variant, hit: &Hit) -> Material {
     let m = &scene.materials[scene.info[hit.triangle as usize].material as usize];
     resolve(scene, v, m, hit.triangle, hit_weights(hit))
@@ -163,7 +163,7 @@ pub fn material_at(scene: &SceneView, v: Variant, hit: &Hit) -> Material {
 /// Whether a hit on triangle `tri` with unnormalised weights (u, v, w) is cut out by its
 /// material's alpha mask. Only tested when `scene.alpha_masks` is set (the variant has alpha
 /// masks).
-#[inline]
+#[inline(always)]
 pub fn cut_out(scene: &SceneView, tri: u32, u: f32, v: f32, w: f32) -> bool {
     let mut out = false;
     if scene.alpha_masks {

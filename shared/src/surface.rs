@@ -83,7 +83,7 @@ pub fn interpolated_normal(scene: &SceneView, tri: u32, b: (f32, f32, f32)) -> V
 #[inline(always)]
 pub fn shading_normal(scene: &SceneView, v: Variant, tri: u32, b: (f32, f32, f32), flat: Vec3, wo: Vec3) -> Vec3 {
     let mut ns = flat;
-    if v.has(FEATURE_VERTEX_NORMALS) {
+    if v.has(FEATURE_VERTEX_NORMALS) & !scene.attributes.is_empty() {
         let n = interpolated_normal(scene, tri, b);
         if length_squared(n) > 0.0 {
             let n = normalize(n);
@@ -109,7 +109,9 @@ pub fn consistent(v: Variant, flat: Vec3, ns: Vec3, wi: Vec3) -> bool {
 #[inline(always)]
 pub fn resolve(scene: &SceneView, v: Variant, m: &Material, tri: u32, b: (f32, f32, f32)) -> Material {
     let mut r = *m;
-    if v.has(FEATURE_TEXTURES) {
+    // A scene without textures (an empty buffer) skips the slots: one compare per hit on the
+    // CPU, whose variants all have the texture bit.
+    if v.has(FEATURE_TEXTURES) & !scene.textures.is_empty() {
         let t = m.textures;
         let any = (t[TEXTURE_ALBEDO] != NO_TEXTURE)
             | (t[TEXTURE_EMISSION] != NO_TEXTURE)
@@ -146,7 +148,7 @@ pub fn resolve(scene: &SceneView, v: Variant, m: &Material, tri: u32, b: (f32, f
 #[inline(always)]
 pub fn emission_at(scene: &SceneView, v: Variant, m: &Material, tri: u32, b: (f32, f32, f32)) -> Vec3 {
     let mut e = xyz(m.emission);
-    if v.has(FEATURE_TEXTURES) & (m.textures[TEXTURE_EMISSION] != NO_TEXTURE) {
+    if v.has(FEATURE_TEXTURES) & !scene.textures.is_empty() & (m.textures[TEXTURE_EMISSION] != NO_TEXTURE) {
         let c = sample(scene.textures, m.textures[TEXTURE_EMISSION] - 1, uv_at(scene, tri, b));
         e = Vec3::new(c.x, c.y, c.z);
     }

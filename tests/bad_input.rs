@@ -176,7 +176,17 @@ fn cases() -> Vec<Case> {
                 ("a.mtl", "newmtl x\nKd 1 1 1\nmap_Kd -bm 1 wood.png\n"),
             ],
             render("a.obj"),
-            &["a.mtl", "texture \"wood.png\" not found"],
+            &["a.mtl:3", "map_Kd \"wood.png\"", "wood.png: cannot read"],
+        ),
+        case(
+            "undecodable texture",
+            vec![
+                ("a.obj", &format!("mtllib a.mtl\n{TRI}usemtl x\nf 1 2 3\n")),
+                ("a.mtl", "newmtl x\nKd 1 1 1\nmap_d mask.png\n"),
+                ("mask.png", "\u{89}PNG, or so it says"),
+            ],
+            render("a.obj"),
+            &["a.mtl:3", "map_d \"mask.png\"", "not a PNG or JPEG"],
         ),
         case("unknown scene extension", vec![("a.ply", "ply\n")], render("a.ply"), &["a.ply", "unknown scene type"]),
         // ---- TOML scene files ----

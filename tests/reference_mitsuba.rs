@@ -260,3 +260,24 @@ fn rough_glass_matches_mitsuba_per_block() {
 fn smooth_glass_matches_mitsuba_per_block() {
     block_matches_mitsuba("smooth-glass", 8);
 }
+
+/// A texture against Mitsuba's `bitmap`: the Cornell box with a 4×4-texel sRGB poster on its back
+/// wall (tests/data/cornell-textured, reference by `bench/peers/make_test_reference.sh textured`:
+/// bilinear filtering, repeat wrapping, sRGB decoding), the same per-pixel test and mean; the
+/// poster's pixels differ from the plain box's, so the test sees the texture (a poster read upside
+/// down or mirrored would fail it: its rows and columns differ).
+#[test]
+fn textured_wall_matches_mitsuba_per_pixel() {
+    let reference = read("cornell-textured/cornell-textured-mitsuba-32.exr");
+    let stderr = read("cornell-textured/cornell-textured-mitsuba-32-stderr.exr");
+    let (mean, var) = kdtrace_seed_statistics("tests/data/cornell-textured/cornell-textured.toml", None);
+    let (_, _, _, ratio, _) = pointwise(&reference, &mean).unwrap();
+    let t = test_against(&reference, &stderr, &mean, &var);
+    eprintln!("textured wall: mean ratio kdtrace/Mitsuba {ratio:.5}; per-pixel test: {t:?}");
+    assert!((ratio - 1.0).abs() < 0.01, "image mean ratio {ratio}");
+    assert!(t.pass && t.tests == 3 * (SIZE * SIZE) as u64, "{t:?}");
+    let plain = read("cornell-box-mitsuba-32.exr");
+    let changed =
+        reference.pixels.iter().zip(&plain.pixels).filter(|(a, b)| (a[2] - b[2]).abs() > 0.05 * b[2].max(0.01)).count();
+    assert!(changed > 100, "only {changed} pixels differ from the plain box");
+}

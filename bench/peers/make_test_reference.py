@@ -6,7 +6,9 @@ tests/data/cornell-materials/cornell-glass-mitsuba-32.exr: the tall block a roug
 `roughdielectric` GGX α 0.2, int_ior 1.5, ext_ior 1 (`smooth-glass`: `dielectric`, the same
 indices, into cornell-smooth-glass-mitsuba-32.exr); with `plastic`,
 tests/data/cornell-materials/cornell-plastic-mitsuba-32.exr: the tall block `plastic` with
-diffuse_reflectance (0.7, 0.25, 0.1), int_ior 1.5, ext_ior 1, nonlinear false, two-sided).
+diffuse_reflectance (0.7, 0.25, 0.1), int_ior 1.5, ext_ior 1, nonlinear false, two-sided); with `textured`,
+tests/data/cornell-textured/cornell-textured-mitsuba-32.exr: the box with a 4x4-texel sRGB poster
+on its back wall, Mitsuba's `bitmap` with bilinear filtering and repeat wrapping, raw = false).
 
 Mitsuba 3.9 `llvm_ad_rgb` renders our Cornell box (scenes/cornell-box.obj) as render_mitsuba.py
 does: 32x32 pixels, 6 bounces (max_depth 8), Cornell's camera (eye 0.278,0.273,0.8, target
@@ -33,6 +35,7 @@ sys.path.insert(0, HERE)
 
 import numpy as np  # noqa: E402
 import mitsuba as mi  # noqa: E402
+import objscene  # noqa: E402
 import render_mitsuba  # noqa: E402
 
 CHUNKS = 16
@@ -45,14 +48,43 @@ AU_ETA = [0.143119, 0.374957, 1.442479]
 AU_K = [3.983160, 2.385721, 1.603215]
 
 
+def poster(d, tmp, folder):
+    """Gives the back wall (the OBJ's material `poster`) its texture: a PLY with the OBJ's planar
+    texture coordinates u = x / 0.556, v = y / 0.5488 (cornell-textured.obj), v written as 1 - v
+    because Mitsuba's bitmap puts v = 0 at the image's top row (its OBJ loader flips v; its PLY
+    loader does not), and a two-sided diffuse reading poster.png as sRGB."""
+    key = next(k for k in d if k.endswith("_poster"))
+    part = objscene.load(os.path.join(folder, "cornell-textured.obj"))["poster"]
+    verts = np.asarray(part["vertices"], dtype="<f4")
+    uv = np.stack([verts[:, 0] / np.float32(0.556), 1.0 - verts[:, 1] / np.float32(0.5488)], axis=1)
+    ply = os.path.join(tmp, "poster.ply")
+    with open(ply, "wb") as f:
+        f.write((
+            "ply\nformat binary_little_endian 1.0\n"
+            f"element vertex {len(verts)}\nproperty float x\nproperty float y\nproperty float z\n"
+            "property float u\nproperty float v\n"
+            f"element face {len(part['triangles'])}\nproperty list uchar int vertex_indices\nend_header\n"
+        ).encode())
+        f.write(np.concatenate([verts, uv.astype("<f4")], axis=1).astype("<f4").tobytes())
+        faces = np.zeros(len(part["triangles"]), dtype=[("n", "u1"), ("i", "<i4", 3)])
+        faces["n"] = 3
+        faces["i"] = np.asarray(part["triangles"], dtype="<i4")
+        f.write(faces.tobytes())
+    texture = {"type": "bitmap", "filename": os.path.join(folder, "poster.png"), "filter_type": "bilinear",
+               "wrap_mode": "repeat", "raw": False}
+    d[key]["filename"] = ply
+    d[key]["bsdf"] = {"type": "twosided", "material": {"type": "diffuse", "reflectance": texture}}
+
+
 def main():
     mi.set_variant("llvm_ad_rgb")
     mode = sys.argv[1] if len(sys.argv) > 1 else "box"
-    if mode not in ("box", "metal", "glass", "smooth-glass", "plastic"):
-        sys.exit(f"unknown mode {mode!r}: box, metal, glass, smooth-glass or plastic")
+    if mode not in ("box", "metal", "glass", "smooth-glass", "plastic", "textured"):
+        sys.exit(f"unknown mode {mode!r}: box, metal, glass, smooth-glass, plastic or textured")
     box = os.path.join(ROOT, "scenes", "cornell-box.obj")
     block = os.path.join(ROOT, "tests", "data", "cornell-metal", "cornell-metal.obj")
-    obj = box if mode == "box" else block
+    textured_folder = os.path.join(ROOT, "tests", "data", "cornell-textured")
+    obj = {"box": box, "textured": os.path.join(textured_folder, "cornell-textured.obj")}.get(mode, block)
     bsdfs = {}
     if mode == "metal":
         gold = {"type": "roughconductor", "distribution": "ggx", "alpha": 0.2, "sample_visible": True,
@@ -74,7 +106,10 @@ def main():
     t0 = time.perf_counter()
     chunks = []
     with tempfile.TemporaryDirectory() as tmp:
-        scene = mi.load_dict(render_mitsuba.scene_dict(args, tmp, bsdfs))
+        d = render_mitsuba.scene_dict(args, tmp, bsdfs)
+        if mode == "textured":
+            poster(d, tmp, textured_folder)
+        scene = mi.load_dict(d)
         for c in range(CHUNKS):
             img = mi.render(scene, spp=SPP_PER_CHUNK, seed=1000 + c)
             chunks.append(np.asarray(img, dtype=np.float64)[:, :, :3])
@@ -87,6 +122,7 @@ def main():
         "glass": (os.path.join(ROOT, "tests", "data", "cornell-materials"), "cornell-glass-mitsuba-32"),
         "smooth-glass": (os.path.join(ROOT, "tests", "data", "cornell-materials"), "cornell-smooth-glass-mitsuba-32"),
         "plastic": (os.path.join(ROOT, "tests", "data", "cornell-materials"), "cornell-plastic-mitsuba-32"),
+        "textured": (textured_folder, "cornell-textured-mitsuba-32"),
     }[mode]
     os.makedirs(out, exist_ok=True)
     for name, a in [(f"{stem}.exr", mean), (f"{stem}-stderr.exr", stderr)]:

@@ -27,7 +27,7 @@ pub const MAX_IMAGE_BYTES: u64 = 4 << 30;
 pub trait Files {
     /// The whole file.
     fn read(&self, path: &Path) -> io::Result<Vec<u8>>;
-    /// Whether a file is there (textures are checked, not read: nothing samples them yet).
+    /// Whether a file is there (texture maps kdtrace ignores are checked, not read).
     fn exists(&self, path: &Path) -> bool;
 }
 

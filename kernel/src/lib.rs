@@ -12,12 +12,12 @@
 //! with other values is that variant, compiled without what its feature set leaves out.
 #![no_std]
 
-use shared::features::Variant;
+use shared::features::{Variant, FEATURE_ALPHA_MASKS};
 use shared::glam::{UVec3, UVec4, Vec4};
 use shared::integrator::{render_pixel, render_samples};
 use shared::layout::{
-    KdNode, Light, Material, RayQuery, RayResult, RenderParams, TriBlock, Triangle, TriangleInfo, LIST_GROUP,
-    PERSISTENT_GROUP,
+    KdNode, Light, Material, RayQuery, RayResult, RenderParams, TriBlock, Triangle, TriangleAttributes, TriangleInfo,
+    LIST_GROUP, PERSISTENT_GROUP,
 };
 use shared::raycast::cast_ray;
 use shared::scene::SceneView;
@@ -25,12 +25,35 @@ use spirv_std::arch::{atomic_i_add, workgroup_memory_barrier_with_group_sync};
 use spirv_std::memory::{Scope, Semantics};
 use spirv_std::spirv;
 
+/// The scene's buffers as the integrator's view, testing alpha masks only where the variant has
+/// them (`SceneView::alpha_masks`).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn view<'a>(
+    params: &RenderParams,
+    nodes: &'a [KdNode],
+    indices: &'a [u32],
+    blocks: &'a [TriBlock],
+    triangles: &'a [Triangle],
+    info: &'a [TriangleInfo],
+    materials: &'a [Material],
+    lights: &'a [Light],
+    attributes: &'a [TriangleAttributes],
+    textures: &'a [u32],
+    v: Variant,
+) -> SceneView<'a> {
+    let mut scene =
+        SceneView::new(params, nodes, indices, blocks, triangles, info, materials, lights, attributes, textures);
+    scene.alpha_masks = v.has(FEATURE_ALPHA_MASKS);
+    scene
+}
+
 /// One invocation per pixel: adds this pass's samples to the pixel's running sum.
 #[spirv(compute(threads(8, 8, 1)))]
 #[allow(clippy::too_many_arguments)]
 pub fn render_pass(
     #[spirv(global_invocation_id)] id: UVec3,
-    #[spirv(spec_constant(id = 0, default = 511))] features: u32,
+    #[spirv(spec_constant(id = 0, default = 4095))] features: u32,
     #[spirv(spec_constant(id = 1, default = 4294967295))] max_bounces: u32,
     #[spirv(spec_constant(id = 2, default = 4294967295))] rr_start: u32,
     #[spirv(uniform, descriptor_set = 0, binding = 0)] params: &RenderParams,
@@ -41,6 +64,8 @@ pub fn render_pass(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] materials: &[Material],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] lights: &[Light],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 13)] blocks: &[TriBlock],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 15)] attributes: &[TriangleAttributes],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 16)] textures: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] accum: &mut [Vec4],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] primary: &mut [u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 12)] accum_sq: &mut [Vec4],
@@ -48,9 +73,9 @@ pub fn render_pass(
     if (id.x >= params.width) | (id.y >= params.height) {
         return;
     }
-    let scene = SceneView::new(params, nodes, indices, blocks, triangles, info, materials, lights);
-    let pixel = (id.y * params.width + id.x) as usize;
     let v = Variant::from_spec(features, max_bounces, rr_start, params);
+    let scene = view(params, nodes, indices, blocks, triangles, info, materials, lights, attributes, textures, v);
+    let pixel = (id.y * params.width + id.x) as usize;
     render_pixel(&scene, params, v, id.x, id.y, &mut accum[pixel], &mut accum_sq[pixel], &mut primary[pixel]);
 }
 
@@ -65,7 +90,7 @@ pub fn render_pass(
 pub fn render_persistent(
     #[spirv(local_invocation_index)] lane: u32,
     #[spirv(workgroup)] batch: &mut u32,
-    #[spirv(spec_constant(id = 0, default = 511))] features: u32,
+    #[spirv(spec_constant(id = 0, default = 4095))] features: u32,
     #[spirv(spec_constant(id = 1, default = 4294967295))] max_bounces: u32,
     #[spirv(spec_constant(id = 2, default = 4294967295))] rr_start: u32,
     #[spirv(uniform, descriptor_set = 0, binding = 0)] params: &RenderParams,
@@ -76,13 +101,15 @@ pub fn render_persistent(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] materials: &[Material],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] lights: &[Light],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 13)] blocks: &[TriBlock],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 15)] attributes: &[TriangleAttributes],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 16)] textures: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] accum: &mut [Vec4],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] primary: &mut [u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 11)] queue: &mut [u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 12)] accum_sq: &mut [Vec4],
 ) {
-    let scene = SceneView::new(params, nodes, indices, blocks, triangles, info, materials, lights);
     let v = Variant::from_spec(features, max_bounces, rr_start, params);
+    let scene = view(params, nodes, indices, blocks, triangles, info, materials, lights, attributes, textures, v);
     let total = params.width * params.height;
     let mut running = true;
     let mut round = 0;
@@ -123,7 +150,7 @@ pub fn render_persistent(
 pub fn render_list(
     #[spirv(global_invocation_id)] id: UVec3,
     #[spirv(num_workgroups)] groups: UVec3,
-    #[spirv(spec_constant(id = 0, default = 511))] features: u32,
+    #[spirv(spec_constant(id = 0, default = 4095))] features: u32,
     #[spirv(spec_constant(id = 1, default = 4294967295))] max_bounces: u32,
     #[spirv(spec_constant(id = 2, default = 4294967295))] rr_start: u32,
     #[spirv(uniform, descriptor_set = 0, binding = 0)] params: &RenderParams,
@@ -134,6 +161,8 @@ pub fn render_list(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] materials: &[Material],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] lights: &[Light],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 13)] blocks: &[TriBlock],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 15)] attributes: &[TriangleAttributes],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 16)] textures: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] accum: &mut [Vec4],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] primary: &mut [u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 12)] accum_sq: &mut [Vec4],
@@ -143,8 +172,8 @@ pub fn render_list(
     if i >= params.live_count {
         return;
     }
-    let scene = SceneView::new(params, nodes, indices, blocks, triangles, info, materials, lights);
     let v = Variant::from_spec(features, max_bounces, rr_start, params);
+    let scene = view(params, nodes, indices, blocks, triangles, info, materials, lights, attributes, textures, v);
     let e = live[i as usize];
     let (x, y, pixel) = (e.x % params.width, e.x / params.width, e.x as usize);
     render_samples(&scene, params, v, x, y, e.y, e.z, &mut accum[pixel], &mut accum_sq[pixel], &mut primary[pixel]);
@@ -163,6 +192,8 @@ pub fn cast_rays(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] materials: &[Material],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] lights: &[Light],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 13)] blocks: &[TriBlock],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 15)] attributes: &[TriangleAttributes],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 16)] textures: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 9)] rays: &[RayQuery],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 10)] results: &mut [RayResult],
 ) {
@@ -170,6 +201,7 @@ pub fn cast_rays(
     if i >= rays.len() {
         return;
     }
-    let scene = SceneView::new(params, nodes, indices, blocks, triangles, info, materials, lights);
+    let scene =
+        SceneView::new(params, nodes, indices, blocks, triangles, info, materials, lights, attributes, textures);
     results[i] = cast_ray(&scene, &rays[i]);
 }

@@ -27,8 +27,15 @@ pub const FEATURE_DIELECTRIC: u32 = 1 << 6;
 pub const FEATURE_PLASTIC: u32 = 1 << 7;
 /// glTF metallic-roughness materials (`material::principled`) are present.
 pub const FEATURE_PRINCIPLED: u32 = 1 << 8;
+/// Some material has a texture map (`surface::resolve` fetches texels at each hit).
+pub const FEATURE_TEXTURES: u32 = 1 << 9;
+/// Some material has an alpha mask: hits are tested against it (`surface::cut_out`) in every
+/// traversal.
+pub const FEATURE_ALPHA_MASKS: u32 = 1 << 10;
+/// Some triangle has vertex normals: shading interpolates them (`surface::shading_normal`).
+pub const FEATURE_VERTEX_NORMALS: u32 = 1 << 11;
 /// Every feature: the generic code, which serves any scene.
-pub const FEATURES_ALL: u32 = (1 << 9) - 1;
+pub const FEATURES_ALL: u32 = (1 << 12) - 1;
 /// The material-kind bits: when exactly one is set, material dispatch is skipped.
 pub const FEATURE_MATERIALS: u32 =
     FEATURE_DIFFUSE | FEATURE_CONDUCTOR | FEATURE_DIELECTRIC | FEATURE_PLASTIC | FEATURE_PRINCIPLED;

@@ -19,6 +19,7 @@ use crate::raycast::{any, closest};
 use crate::rng::Sampler;
 use crate::sampling::{power_heuristic, remap_in_light, select_light, uniform_triangle};
 use crate::scene::SceneView;
+use crate::surface::{consistent, emission_at, hit_weights, material_at, shading_normal};
 use crate::triangle::{geometric_normal, hit_point, interpolate, stored_normal, TriangleHit};
 use crate::vecmath::{dot, length_squared, max_component, normalize, xyz};
 #[allow(unused_imports)]
@@ -83,8 +84,9 @@ pub fn trace_sample(scene: &SceneView, p: &RenderParams, v: Variant, px: u32, py
             // The first hit's albedo or shading normal, for denoisers and debugging.
             if hit.is_hit() {
                 let tri = &scene.triangles[hit.triangle as usize];
-                let (ns, _) = facing(geometric_normal(tri), stored_normal(tri), path.dir);
-                let mat = &scene.materials[scene.info[hit.triangle as usize].material as usize];
+                let (flat, _) = facing(geometric_normal(tri), stored_normal(tri), path.dir);
+                let ns = shading_normal(scene, v, hit.triangle, hit_weights(&hit), flat, -normalize(path.dir));
+                let mat = &material_at(scene, v, &hit);
                 path.radiance = if p.aov == AOV_NORMAL { ns } else { albedo(v, mat) };
             }
             alive = false;
@@ -132,7 +134,8 @@ fn shade_vertex(
     let [ub1, ub2, u_roulette] = if last { [0.0; 3] } else { rng.next_3d() };
     let tri = &scene.triangles[hit.triangle as usize];
     let info = scene.info[hit.triangle as usize];
-    let mat = &scene.materials[info.material as usize];
+    // The material with its textures looked up at the hit (`surface::resolve`).
+    let mat = &material_at(scene, v, hit);
     let ng = geometric_normal(tri);
     let n = stored_normal(tri);
     let surface = hit_point(tri, &TriangleHit { t: hit.t, u: hit.u, v: hit.v, w: hit.w });
@@ -156,9 +159,12 @@ fn shade_vertex(
     }
 
     // Shade on the side the ray arrived from: the materials are two-sided.
-    let (ns, front) = facing(ng, n, dir);
-    let spawn = offset_ray_origin(pos, surface.error, ns);
+    // Rays leave along the flat normal `nf`; the BSDFs see the shading normal `ns`, which is
+    // `nf` without vertex normals (`surface::shading_normal`).
+    let (nf, front) = facing(ng, n, dir);
+    let spawn = offset_ray_origin(pos, surface.error, nf);
     let wo = -normalize(dir);
+    let ns = shading_normal(scene, v, hit.triangle, hit_weights(hit), nf, wo);
 
     // A smooth mirror reflects no sampled light: its reflection of an emitter counts in full
     // when the BSDF ray hits it (`DELTA_PDF` takes the whole MIS weight).
@@ -181,17 +187,18 @@ fn shade_vertex(
         let wi = to_light * (1.0 / dist2.sqrt());
         let cos_l = -dot(nl, wi);
         let (f, pdf_bsdf) = eval(v, mat, ns, wo, wi, front);
-        if (cos_l > 0.0) & (pdf_bsdf > 0.0) & (dist2 > 0.0) {
+        if (cos_l > 0.0) & (pdf_bsdf > 0.0) & (dist2 > 0.0) & consistent(v, nf, ns, wi) {
             let light_pdf = light.pmf * dist2 / (cos_l * light.area);
             let target = offset_ray_origin(q, on_light.error, nl);
             // A light behind a transmitting surface is seen through it: the shadow ray leaves
             // from the far side.
             let cos_i = dot(ns, wi);
-            let from = if cos_i < 0.0 { offset_ray_origin(pos, surface.error, -ns) } else { spawn };
+            let from = if dot(nf, wi) < 0.0 { offset_ray_origin(pos, surface.error, -nf) } else { spawn };
             if !any(scene, p.traversal, from, target - from, 1.0 - SHADOW_EPSILON).hit.is_hit() {
                 let lmat = &scene.materials[scene.info[light.triangle as usize].material as usize];
+                let le = emission_at(scene, v, lmat, light.triangle, (b0, b1, b2));
                 let weight = power_heuristic(light_pdf, pdf_bsdf);
-                path.radiance += path.beta * f * xyz(lmat.emission) * (cos_i.abs() * weight / light_pdf);
+                path.radiance += path.beta * f * le * (cos_i.abs() * weight / light_pdf);
             }
         }
     }
@@ -199,7 +206,7 @@ fn shade_vertex(
     // The lobe pick's uniform, drawn only for a material that has a choice.
     let u_pick = if picks_lobe(v, mat) { rng.independent_after() } else { 0.0 };
     let bs = sample_bsdf(v, mat, ns, wo, front, ub1, ub2, u_pick);
-    if bs.pdf <= 0.0 {
+    if (bs.pdf <= 0.0) | !consistent(v, nf, ns, bs.wi) {
         return false;
     }
     path.beta *= bs.weight;
@@ -214,7 +221,7 @@ fn shade_vertex(
     }
     // A refracted ray leaves from the far side of the surface.
     path.origin =
-        if transmits(v, mat) & (dot(bs.wi, ns) < 0.0) { offset_ray_origin(pos, surface.error, -ns) } else { spawn };
+        if transmits(v, mat) & (dot(bs.wi, nf) < 0.0) { offset_ray_origin(pos, surface.error, -nf) } else { spawn };
     path.dir = bs.wi;
     true
 }

@@ -11,12 +11,17 @@
 //! conservative triangle placement by the builder this returns exactly the hit that testing every
 //! triangle returns (`intersect_brute_force`), bit for bit, because every triangle test performs
 //! the operations of `RayShear::intersect` (the CPU's eight-lane `intersect_block` lane by lane).
+//!
+//! A hit that its material's alpha mask cuts out (`surface::cut_out`) is no hit: the leaf test
+//! skips it and goes on, so every traversal (and brute force) returns the closest hit that
+//! counts, and an any-hit query stops only at one that counts.
 use crate::glam::Vec3;
 #[cfg(not(target_arch = "spirv"))]
 use crate::layout::BLOCK_WIDTH;
 use crate::layout::{KdNode, KD_MAX_DEPTH, NO_HIT};
 use crate::numerics::{gamma, is_finite3, T_SLACK};
 use crate::scene::SceneView;
+use crate::surface::cut_out;
 use crate::triangle::RayShear;
 use crate::vecmath::axis;
 
@@ -200,8 +205,11 @@ pub fn test_leaf_each(
     while (i < end) & !done {
         let id = scene.indices[i as usize];
         if let Some(h) = shear.intersect(&scene.triangles[id as usize], 0.0, best.t) {
-            *best = Hit { t: h.t, triangle: id, u: h.u, v: h.v, w: h.w, nodes: 0, tests: 0 };
-            done = any_hit;
+            // A hit its alpha mask cuts out does not count: the leaf goes on.
+            if !cut_out(scene, id, h.u, h.v, h.w) {
+                *best = Hit { t: h.t, triangle: id, u: h.u, v: h.v, w: h.w, nodes: 0, tests: 0 };
+                done = any_hit;
+            }
         }
         i += 1;
     }
@@ -230,11 +238,35 @@ pub fn test_leaf_blocks(
     let mut k = start / BLOCK_WIDTH;
     let past = if start == end { k } else { end.div_ceil(BLOCK_WIDTH) };
     let mut done = false;
+    if !scene.alpha_masks {
+        // No masks: one block test per block (the loop below, without its retests).
+        while (k < past) & !done {
+            if let Some((lane, h)) = shear.intersect_block(&scene.blocks[k as usize], ALL_LANES, 0.0, best.t, any_hit) {
+                let id = scene.indices[(k * BLOCK_WIDTH + lane) as usize];
+                *best = Hit { t: h.t, triangle: id, u: h.u, v: h.v, w: h.w, nodes: 0, tests: 0 };
+                done = any_hit;
+            }
+            k += 1;
+        }
+    }
     while (k < past) & !done {
-        if let Some((lane, h)) = shear.intersect_block(&scene.blocks[k as usize], ALL_LANES, 0.0, best.t, any_hit) {
-            let id = scene.indices[(k * BLOCK_WIDTH + lane) as usize];
-            *best = Hit { t: h.t, triangle: id, u: h.u, v: h.v, w: h.w, nodes: 0, tests: 0 };
-            done = any_hit;
+        // A lane whose hit its alpha mask cuts out leaves the mask and the block is tested again:
+        // the next closest (or next) lane, as `test_leaf_each` finds it.
+        let mut lanes = ALL_LANES;
+        while lanes != 0 {
+            lanes = match shear.intersect_block(&scene.blocks[k as usize], lanes, 0.0, best.t, any_hit) {
+                Some((lane, h)) => {
+                    let id = scene.indices[(k * BLOCK_WIDTH + lane) as usize];
+                    if cut_out(scene, id, h.u, h.v, h.w) {
+                        lanes & !(1 << lane)
+                    } else {
+                        *best = Hit { t: h.t, triangle: id, u: h.u, v: h.v, w: h.w, nodes: 0, tests: 0 };
+                        done = any_hit;
+                        0
+                    }
+                }
+                None => 0,
+            };
         }
         k += 1;
     }
@@ -407,7 +439,9 @@ pub fn intersect_brute_force(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: 
     let mut id = 0;
     while id < scene.triangles.len() {
         if let Some(h) = shear.intersect(&scene.triangles[id], 0.0, best.t) {
-            best = Hit { t: h.t, triangle: id as u32, u: h.u, v: h.v, w: h.w, nodes: 0, tests: 0 };
+            if !cut_out(scene, id as u32, h.u, h.v, h.w) {
+                best = Hit { t: h.t, triangle: id as u32, u: h.u, v: h.v, w: h.w, nodes: 0, tests: 0 };
+            }
         }
         id += 1;
     }

@@ -107,7 +107,63 @@ pub struct Material {
     pub eta: Vec4,
     /// Conductor: the imaginary part (absorption), in `xyz`.
     pub k: Vec4,
+    /// Texture maps by slot (`TEXTURE_ALBEDO` … `TEXTURE_METALLIC`): `NO_TEXTURE`, or 1 + the
+    /// texture's index in the texture table (`texture`). `surface::resolve` replaces the
+    /// constant a slot covers with the texture's value at the hit before any BSDF sees it.
+    pub textures: [u32; 8],
 }
+
+/// A texture slot that holds no texture. Zero, so that a `Material` made with `Default` or
+/// zeroed bytes has no textures.
+pub const NO_TEXTURE: u32 = 0;
+/// Slot of the texture that replaces `albedo.xyz` (MTL `map_Kd`, a scene file's `albedo_texture`).
+pub const TEXTURE_ALBEDO: usize = 0;
+/// Slot of the alpha mask (MTL `map_d`): a hit where its value is below `ALPHA_CUTOFF` does not
+/// count.
+pub const TEXTURE_ALPHA: usize = 1;
+/// Slot of the texture that replaces `emission.xyz` (MTL `map_Ke`).
+pub const TEXTURE_EMISSION: usize = 2;
+/// Slot of the perceptual roughness r (MTL `map_Pr`): `params.x`, the GGX α, becomes r².
+pub const TEXTURE_ROUGHNESS: usize = 3;
+/// Slot of the metallic weight (MTL `map_Pm`): replaces `params.z`.
+pub const TEXTURE_METALLIC: usize = 4;
+/// Alpha below this cuts the surface out (the usual alpha-test threshold).
+pub const ALPHA_CUTOFF: f32 = 0.5;
+
+/// A triangle's vertex attributes (OBJ `vn` and `vt`), in the order of its vertices v0, v1, v2:
+/// unit shading normals in the `xyz` of `n0`, `n1`, `n2` (all zero: the triangle has none and
+/// shades with its flat normal), texture coordinates (u in the `w` of `n0`, `n1`, `n2`, v in
+/// `uv_v.xyz`; all zero when the mesh gives none). One entry per triangle, or an empty buffer
+/// for a scene with no attributes at all (`surface` reads zeros for a triangle beyond it).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(not(target_arch = "spirv"), derive(bytemuck::Pod, bytemuck::Zeroable))]
+pub struct TriangleAttributes {
+    pub n0: Vec4,
+    pub n1: Vec4,
+    pub n2: Vec4,
+    /// v of v0, v1, v2 in `xyz`; `w` unused (0).
+    pub uv_v: Vec4,
+}
+
+/// One entry of the texture table at the start of the texture buffer (four words per texture,
+/// `texture::info`): where its texels start (in words from the buffer's start), its size, and
+/// its format and wrap mode (`TEXTURE_*` flags).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(not(target_arch = "spirv"), derive(bytemuck::Pod, bytemuck::Zeroable))]
+pub struct TextureInfo {
+    pub offset: u32,
+    pub width: u32,
+    pub height: u32,
+    pub flags: u32,
+}
+
+/// `TextureInfo::flags`: one f16 channel per texel, two texels per word (data textures:
+/// roughness, metallic, alpha); without it, RGBA as four f16 in two words (colour textures).
+pub const TEXTURE_ONE_CHANNEL: u32 = 1;
+/// `TextureInfo::flags`: clamp coordinates to the edge instead of repeating the image.
+pub const TEXTURE_CLAMP: u32 = 2;
 
 /// One emissive triangle in the light-selection table.
 #[repr(C)]
@@ -239,6 +295,9 @@ pub const AOV_NORMAL: u32 = 3;
 pub const RAY_ANY_HIT: u32 = 1;
 /// `RayQuery::flags`: traverse with the short stack instead of the full one.
 pub const RAY_SHORT_STACK: u32 = 2;
+/// `RayQuery::flags`: test hits against alpha masks (`surface::cut_out`); set by the host for a
+/// scene that has masks, so ray batches of other scenes skip the material lookup per hit.
+pub const RAY_ALPHA_MASKS: u32 = 4;
 
 /// One ray of a batch cast without shading: the ray-casting kernel, the CPU ≡ GPU traversal
 /// check and the rays/s benchmarks read these.
@@ -298,8 +357,12 @@ pub mod binding {
     pub const BLOCKS: u32 = 13;
     /// Adaptive sampling's list of live pixels and their sample ranges (read-only).
     pub const LIVE: u32 = 14;
+    /// Per-triangle vertex normals and texture coordinates (`TriangleAttributes`, read-only).
+    pub const ATTRIBUTES: u32 = 15;
+    /// The texture table and texels (`texture`, read-only).
+    pub const TEXTURES: u32 = 16;
     /// Bindings in all: the uniform parameters, then storage buffers.
-    pub const COUNT: u32 = 15;
+    pub const COUNT: u32 = 17;
     /// Storage bindings the kernel writes; every other storage binding is read-only.
     pub const WRITABLE: [u32; 5] = [ACCUM, PRIMARY, RESULTS, QUEUE, ACCUM_SQ];
 }

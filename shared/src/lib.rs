@@ -28,6 +28,8 @@ pub mod sampling;
 pub mod scene;
 pub mod short_stack;
 pub mod sobol;
+pub mod surface;
+pub mod texture;
 pub mod triangle;
 pub mod trig;
 pub mod vecmath;

@@ -8,7 +8,7 @@
 //! Aila & Laine, "Understanding the Efficiency of Ray Traversal on GPUs" (HPG 2009).
 use crate::glam::Vec3;
 use crate::kdtree::{self, Hit};
-use crate::layout::{RayQuery, RayResult, RAY_ANY_HIT, RAY_SHORT_STACK, TRAVERSAL_SHORT_STACK};
+use crate::layout::{RayQuery, RayResult, RAY_ALPHA_MASKS, RAY_ANY_HIT, RAY_SHORT_STACK, TRAVERSAL_SHORT_STACK};
 use crate::scene::SceneView;
 use crate::short_stack::{self, SHORT_STACK};
 use crate::vecmath::xyz;
@@ -43,8 +43,12 @@ pub fn any(scene: &SceneView, traversal: u32, origin: Vec3, dir: Vec3, t_max: f3
     query(scene, traversal, origin, dir, t_max, true)
 }
 
+/// One ray of a batch; alpha masks count where the query asks for them (`RAY_ALPHA_MASKS`) and
+/// the scene view tests them.
 #[inline]
 pub fn cast_ray(scene: &SceneView, q: &RayQuery) -> RayResult {
+    let masks = scene.alpha_masks & ((q.flags & RAY_ALPHA_MASKS) != 0);
+    let scene = &SceneView { alpha_masks: masks, ..*scene };
     let (o, d) = (xyz(q.origin), xyz(q.dir));
     let traversal = if (q.flags & RAY_SHORT_STACK) != 0 { TRAVERSAL_SHORT_STACK } else { 0 };
     let r = query(scene, traversal, o, d, q.t_max, (q.flags & RAY_ANY_HIT) != 0);

@@ -1,6 +1,6 @@
 //! The scene as the integrator sees it: borrowed slices of the GPU buffers.
 use crate::glam::Vec3;
-use crate::layout::{KdNode, Light, Material, RenderParams, TriBlock, Triangle, TriangleInfo};
+use crate::layout::{KdNode, Light, Material, RenderParams, TriBlock, Triangle, TriangleAttributes, TriangleInfo};
 use crate::vecmath::xyz;
 
 #[derive(Clone, Copy)]
@@ -17,6 +17,15 @@ pub struct SceneView<'a> {
     /// The first `light_count` entries are real (a GPU buffer cannot be empty).
     pub lights: &'a [Light],
     pub light_count: u32,
+    /// Per-triangle vertex normals and texture coordinates; may be shorter than `triangles`
+    /// (empty for a scene without any): a triangle beyond it has none (`surface`).
+    pub attributes: &'a [TriangleAttributes],
+    /// The texture table and texels (`texture`).
+    pub textures: &'a [u32],
+    /// Whether hits are tested against alpha masks (`surface::cut_out`): set where the variant
+    /// has `FEATURE_ALPHA_MASKS` (the kernel) or the scene has masks (the CPU); true by default,
+    /// which is always correct, only slower.
+    pub alpha_masks: bool,
     pub bounds_min: Vec3,
     pub bounds_max: Vec3,
 }
@@ -34,6 +43,8 @@ impl<'a> SceneView<'a> {
         info: &'a [TriangleInfo],
         materials: &'a [Material],
         lights: &'a [Light],
+        attributes: &'a [TriangleAttributes],
+        textures: &'a [u32],
     ) -> Self {
         Self {
             nodes,
@@ -44,6 +55,9 @@ impl<'a> SceneView<'a> {
             materials,
             lights,
             light_count: params.light_count,
+            attributes,
+            textures,
+            alpha_masks: true,
             bounds_min: xyz(params.bounds_min),
             bounds_max: xyz(params.bounds_max),
         }

@@ -5,7 +5,10 @@ use crate::render::{adaptive, Compiled, Progress, Rendered};
 use crate::settings::RenderSettings;
 use anyhow::Result;
 use rayon::prelude::*;
-use shared::features::{FEATURES_ALL, FEATURE_DIFFUSE, FEATURE_INDIRECT, FEATURE_MATERIALS};
+use shared::features::{
+    FEATURES_ALL, FEATURE_ALPHA_MASKS, FEATURE_DIFFUSE, FEATURE_INDIRECT, FEATURE_MATERIALS, FEATURE_TEXTURES,
+    FEATURE_VERTEX_NORMALS,
+};
 use shared::glam::Vec4;
 use shared::integrator::render_samples_for;
 use shared::layout::{RenderParams, NO_HIT};
@@ -34,22 +37,27 @@ macro_rules! variants {
     };
 }
 variants!(
-    8 9 10 11 12 13 14 15 24 25 26 27 28 29 30 31
-    488 489 490 491 492 493 494 495 504 505 506 507 508 509 510 511
+    3592 3593 3594 3595 3596 3597 3598 3599 3608 3609 3610 3611 3612 3613 3614 3615
+    4072 4073 4074 4075 4076 4077 4078 4079 4088 4089 4090 4091 4092 4093 4094 4095
 );
 
 /// The feature bits the CPU compiles a variant for, covering `bits`: the bits outside the
 /// materials as they are, and diffuse alone or every material kind (a monomorph per material
 /// set would multiply the variants with each kind; dispatch over the kinds present costs a
-/// compare).
+/// compare). Textures, alpha masks and vertex normals are on in every variant: a scene without
+/// them costs a compare per hit (no texture slot, no mask, no attributes), and the count of
+/// variants (and the build time) stays as it was.
 pub fn cpu_variant_bits(bits: u32) -> u32 {
-    let rest = bits & FEATURES_ALL & !FEATURE_MATERIALS;
+    let rest = (bits & FEATURES_ALL & !FEATURE_MATERIALS) | ALWAYS;
     if bits & FEATURE_MATERIALS == FEATURE_DIFFUSE {
         rest | FEATURE_DIFFUSE
     } else {
         rest | FEATURE_MATERIALS
     }
 }
+
+/// The bits on in every CPU variant (`cpu_variant_bits`).
+const ALWAYS: u32 = FEATURE_TEXTURES | FEATURE_ALPHA_MASKS | FEATURE_VERTEX_NORMALS;
 
 /// Where `cpu_variant_bits(bits)` sits in `VARIANTS`: bits 0–2 and `FEATURE_INDIRECT` (bit 4)
 /// count through 16, every material kind adds 16.

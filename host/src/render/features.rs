@@ -2,14 +2,17 @@
 //! `render --json` (`features`) and for choosing the specialised variant of the integrator that
 //! both renderers run (`RenderSettings::specialize`; off, the generic code).
 use crate::render::Compiled;
+use crate::scene::Scene;
 use crate::settings::RenderSettings;
 use serde::Serialize;
 use shared::features::{
-    FEATURES_ALL, FEATURE_CONDUCTOR, FEATURE_DIELECTRIC, FEATURE_DIFFUSE, FEATURE_EMITTERS, FEATURE_ENVIRONMENT,
-    FEATURE_INDIRECT, FEATURE_MANY_EMITTERS, FEATURE_PLASTIC, FEATURE_PRINCIPLED,
+    FEATURES_ALL, FEATURE_ALPHA_MASKS, FEATURE_CONDUCTOR, FEATURE_DIELECTRIC, FEATURE_DIFFUSE, FEATURE_EMITTERS,
+    FEATURE_ENVIRONMENT, FEATURE_INDIRECT, FEATURE_MANY_EMITTERS, FEATURE_PLASTIC, FEATURE_PRINCIPLED,
+    FEATURE_TEXTURES, FEATURE_VERTEX_NORMALS,
 };
 use shared::layout::{
-    MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, MATERIAL_DIFFUSE, MATERIAL_PLASTIC, MATERIAL_PRINCIPLED,
+    Material, MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, MATERIAL_DIFFUSE, MATERIAL_PLASTIC, MATERIAL_PRINCIPLED,
+    NO_TEXTURE, TEXTURE_ALBEDO, TEXTURE_ALPHA,
 };
 use shared::vecmath::{max_component, xyz};
 
@@ -26,9 +29,11 @@ pub struct Features {
     pub environment: &'static str,
     /// Material kinds present.
     pub materials: Vec<&'static str>,
-    /// Textures and alpha masks (none can be rendered yet).
+    /// Whether materials that triangles use have textures, and alpha masks among them.
     pub textures: bool,
     pub alpha_masks: bool,
+    /// Whether some triangle has vertex normals.
+    pub vertex_normals: bool,
     /// Indirect bounces allowed.
     pub bounces: u32,
     /// Whether light can reach the camera after a bounce.
@@ -40,7 +45,7 @@ pub struct Features {
 }
 
 /// Each bit's name, as `render --json` and the tests print them.
-pub const FEATURE_NAMES: [(u32, &str); 9] = [
+pub const FEATURE_NAMES: [(u32, &str); 12] = [
     (FEATURE_EMITTERS, "emitters"),
     (FEATURE_MANY_EMITTERS, "many_emitters"),
     (FEATURE_ENVIRONMENT, "environment"),
@@ -50,7 +55,24 @@ pub const FEATURE_NAMES: [(u32, &str); 9] = [
     (FEATURE_DIELECTRIC, "dielectric"),
     (FEATURE_PLASTIC, "plastic"),
     (FEATURE_PRINCIPLED, "principled"),
+    (FEATURE_TEXTURES, "textures"),
+    (FEATURE_ALPHA_MASKS, "alpha_masks"),
+    (FEATURE_VERTEX_NORMALS, "vertex_normals"),
 ];
+
+/// The materials that triangles use (a scene file may define more).
+fn used_materials(scene: &Scene) -> Vec<&Material> {
+    let mut used = vec![false; scene.materials.len()];
+    for t in &scene.info {
+        used[t.material as usize] = true;
+    }
+    scene.materials.iter().zip(&used).filter(|(_, &u)| u).map(|(m, _)| m).collect()
+}
+
+/// Whether a material that triangles use has an alpha mask.
+pub fn uses_alpha_masks(scene: &Scene) -> bool {
+    used_materials(scene).iter().any(|m| m.textures[TEXTURE_ALPHA] != NO_TEXTURE)
+}
 
 /// The feature bits of the variant that renders `c` with `s`: the scene's set, or every bit for
 /// the generic code.
@@ -76,12 +98,7 @@ pub fn analyse(c: &Compiled, s: &RenderSettings) -> Features {
             })
             .sum::<f64>();
     let environment = max_component(s.environment) > 0.0;
-    // Materials that triangles use (a scene file may define more).
-    let mut used = vec![false; scene.materials.len()];
-    for t in &scene.info {
-        used[t.material as usize] = true;
-    }
-    let used: Vec<_> = scene.materials.iter().zip(&used).filter(|(_, &u)| u).map(|(m, _)| m).collect();
+    let used = used_materials(scene);
     let diffuse = used.iter().any(|m| m.kind == MATERIAL_DIFFUSE);
     let conductor = used.iter().any(|m| m.kind == MATERIAL_CONDUCTOR);
     let dielectric = used.iter().any(|m| m.kind == MATERIAL_DIELECTRIC);
@@ -94,7 +111,17 @@ pub fn analyse(c: &Compiled, s: &RenderSettings) -> Features {
         || dielectric
         || plastic
         || principled
-        || used.iter().any(|m| m.kind == MATERIAL_DIFFUSE && max_component(xyz(m.albedo)) > 0.0);
+        || used.iter().any(|m| {
+            m.kind == MATERIAL_DIFFUSE
+                && (max_component(xyz(m.albedo)) > 0.0 || m.textures[TEXTURE_ALBEDO] != NO_TEXTURE)
+        });
+    // Texture maps other than the alpha mask change materials at hits; a mask changes what a ray
+    // hits.
+    let textures =
+        used.iter().any(|m| m.textures.iter().enumerate().any(|(slot, &t)| slot != TEXTURE_ALPHA && t != NO_TEXTURE));
+    let alpha_masks = uses_alpha_masks(scene);
+    let vertex_normals =
+        scene.attributes.iter().any(|a| [a.n0, a.n1, a.n2].iter().any(|n| n.truncate() != shared::glam::Vec3::ZERO));
     // (Every emissive triangle is in the light table: `emitters` counts them all.) A render
     // without indirect bounces still follows the BSDF sample to an emitter (MIS), so the bounce
     // limit does not enter.
@@ -110,6 +137,9 @@ pub fn analyse(c: &Compiled, s: &RenderSettings) -> Features {
         (dielectric, FEATURE_DIELECTRIC),
         (plastic, FEATURE_PLASTIC),
         (principled, FEATURE_PRINCIPLED),
+        (textures, FEATURE_TEXTURES),
+        (alpha_masks, FEATURE_ALPHA_MASKS),
+        (vertex_normals, FEATURE_VERTEX_NORMALS),
     ] {
         if on {
             bits |= bit;
@@ -131,8 +161,9 @@ pub fn analyse(c: &Compiled, s: &RenderSettings) -> Features {
         .filter(|m| m.0)
         .map(|m| m.1)
         .collect(),
-        textures: false,
-        alpha_masks: false,
+        textures: textures || alpha_masks,
+        alpha_masks,
+        vertex_normals,
         bounces: s.max_bounces,
         indirect,
         variant: if s.specialize { "specialised" } else { "generic" },

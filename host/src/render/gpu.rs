@@ -9,7 +9,8 @@ use anyhow::{anyhow, bail, Context, Result};
 use shared::features::Variant;
 use shared::glam::Vec4;
 use shared::layout::{
-    binding, RayQuery, RayResult, RenderParams, TriBlock, CAST_GROUP, LIST_GROUP, PERSISTENT_GROUP, RENDER_GROUP_SIDE,
+    binding, RayQuery, RayResult, RenderParams, TriBlock, TriangleAttributes, CAST_GROUP, LIST_GROUP, PERSISTENT_GROUP,
+    RENDER_GROUP_SIDE,
 };
 use std::collections::HashMap;
 use std::sync::Mutex;
@@ -74,8 +75,10 @@ fn bind_group_layout_entries() -> Vec<wgpu::BindGroupLayoutEntry> {
         .collect()
 }
 
-/// The scene's buffers on the device (bindings 0 to 6 and 13).
+/// The scene's buffers on the device (bindings 0 to 6, 13, 15 and 16).
 struct SceneBuffers {
+    attributes: wgpu::Buffer,
+    textures: wgpu::Buffer,
     params: wgpu::Buffer,
     nodes: wgpu::Buffer,
     indices: wgpu::Buffer,
@@ -255,6 +258,8 @@ impl Gpu {
         self.check_size("triangles", std::mem::size_of_val(&c.scene.triangles[..]))?;
         self.check_size("k-d nodes", std::mem::size_of_val(&c.tree.nodes[..]))?;
         self.check_size("leaf indices", std::mem::size_of_val(&c.tree.indices[..]))?;
+        self.check_size("vertex attributes", std::mem::size_of_val(&c.scene.attributes[..]))?;
+        self.check_size("textures", std::mem::size_of_val(&c.scene.textures[..]))?;
         let params = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("params"),
             size: std::mem::size_of::<RenderParams>() as u64,
@@ -276,6 +281,17 @@ impl Gpu {
             // The GPU's leaf test reads `triangles` one by one (`shared::kdtree::test_leaf`):
             // the blocks binding only holds a placeholder.
             blocks: self.storage("blocks", bytemuck::bytes_of(&TriBlock::default())),
+            // Without attributes or textures, a zero entry: `shared::surface` reads a triangle
+            // beyond the attributes as having none, and no material names a texture.
+            attributes: if c.scene.attributes.is_empty() {
+                self.storage("attributes", bytemuck::bytes_of(&TriangleAttributes::default()))
+            } else {
+                self.storage("attributes", bytemuck::cast_slice(&c.scene.attributes))
+            },
+            textures: self.storage(
+                "textures",
+                bytemuck::cast_slice(if c.scene.textures.is_empty() { &[0u32; 4][..] } else { &c.scene.textures }),
+            ),
         })
     }
 
@@ -308,6 +324,8 @@ impl Gpu {
             (binding::ACCUM_SQ, accum_sq),
             (binding::BLOCKS, &s.blocks),
             (binding::LIVE, live),
+            (binding::ATTRIBUTES, &s.attributes),
+            (binding::TEXTURES, &s.textures),
         ];
         debug_assert_eq!(buffers.len() as u32, binding::COUNT);
         let entries: Vec<wgpu::BindGroupEntry> = buffers
@@ -585,6 +603,8 @@ mod tests {
             "accum_sq" => binding::ACCUM_SQ,
             "blocks" => binding::BLOCKS,
             "live" => binding::LIVE,
+            "attributes" => binding::ATTRIBUTES,
+            "textures" => binding::TEXTURES,
             other => panic!("kernel parameter {other:?} is not in shared::layout::binding"),
         }
     }

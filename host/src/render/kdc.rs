@@ -12,7 +12,7 @@
 //! | 16 | 8 | payload length: everything after these 32 bytes |
 //! | 24 | 8 | XXH3-64 of every other byte of the file (bytes 0..24, then 32..) |
 //! | 32 | … | JSON header: writer, build settings (serde), scene settings, material names, bounds, counts |
-//! | … | … | sections of packed `shared::layout` structs: triangles, triangle info, materials, lights, nodes, indices |
+//! | … | … | sections of packed `shared::layout` structs: triangles, triangle info, materials, lights, nodes, indices, vertex attributes (none, or one per triangle), the texture buffer (`shared::texture`) |
 //!
 //! Reading trusts nothing: the version is checked before anything else, every section size is
 //! derived from the header's counts with checked arithmetic and must add up to the file's actual
@@ -32,15 +32,15 @@ use bytemuck::Pod;
 use serde::{Deserialize, Serialize};
 use shared::glam::{DVec3, Vec3, Vec4};
 use shared::layout::{
-    KdNode, Light, Material, Triangle, TriangleInfo, KD_MAX_DEPTH, MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC,
-    MATERIAL_DIFFUSE, MATERIAL_PLASTIC, MATERIAL_PRINCIPLED, NO_LIGHT,
+    KdNode, Light, Material, Triangle, TriangleAttributes, TriangleInfo, KD_MAX_DEPTH, MATERIAL_CONDUCTOR,
+    MATERIAL_DIELECTRIC, MATERIAL_DIFFUSE, MATERIAL_PLASTIC, MATERIAL_PRINCIPLED, NO_LIGHT,
 };
 use std::path::Path;
 use xxhash_rust::xxh3::Xxh3;
 
 pub const MAGIC: [u8; 8] = *b"\x89KDC\r\n\x1a\n";
 /// Bump on any change of the layout or of the meaning of a field.
-pub const FORMAT_VERSION: u32 = 2;
+pub const FORMAT_VERSION: u32 = 3;
 /// Bytes before the JSON header.
 pub const FIXED_HEADER: usize = 32;
 
@@ -52,6 +52,11 @@ struct Counts {
     lights: u64,
     nodes: u64,
     indices: u64,
+    /// Vertex attributes: 0 or `triangles`.
+    attributes: u64,
+    /// Textures in the table, and words of the texture buffer (table and texels).
+    textures: u64,
+    texture_words: u64,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -62,6 +67,8 @@ struct Header {
     build_settings: BuildSettings,
     settings: SceneSettings,
     material_names: Vec<String>,
+    /// The image file of each texture, for messages.
+    texture_sources: Vec<String>,
     dropped_degenerate: usize,
     scene_bounds: [[f32; 3]; 2],
     tree_bounds: [[f32; 3]; 2],
@@ -93,6 +100,7 @@ pub fn encode(c: &Compiled, build_settings: &BuildSettings, settings: &SceneSett
         build_settings: *build_settings,
         settings: settings.clone(),
         material_names: s.material_names.clone(),
+        texture_sources: s.texture_sources.clone(),
         dropped_degenerate: s.dropped_degenerate,
         scene_bounds: [s.bounds_min.to_array(), s.bounds_max.to_array()],
         tree_bounds: [t.bounds_min.to_array(), t.bounds_max.to_array()],
@@ -104,18 +112,23 @@ pub fn encode(c: &Compiled, build_settings: &BuildSettings, settings: &SceneSett
             lights: s.lights.len() as u64,
             nodes: t.nodes.len() as u64,
             indices: t.indices.len() as u64,
+            attributes: s.attributes.len() as u64,
+            textures: s.texture_sources.len() as u64,
+            texture_words: s.textures.len() as u64,
         },
     };
     let mut json = serde_json::to_vec(&header).context("encoding the .kdc header")?;
     // Pad so that every section starts 16-byte aligned (Triangle and Material hold Vec4s).
     json.resize(json.len().next_multiple_of(16), b' ');
-    let sections: [&[u8]; 6] = [
+    let sections: [&[u8]; 8] = [
         bytemuck::cast_slice(&s.triangles),
         bytemuck::cast_slice(&s.info),
         bytemuck::cast_slice(&s.materials),
         bytemuck::cast_slice(&s.lights),
         bytemuck::cast_slice(&t.nodes),
         bytemuck::cast_slice(&t.indices),
+        bytemuck::cast_slice(&s.attributes),
+        bytemuck::cast_slice(&s.textures),
     ];
     let payload = json.len() + sections.iter().map(|b| b.len()).sum::<usize>();
     let mut out = Vec::with_capacity(FIXED_HEADER + payload);
@@ -304,7 +317,7 @@ fn hash_range(input: &dyn ReadAt, at: u64, len: u64, hasher: &mut Xxh3) -> std::
 }
 
 /// (what, count, element size) of each section in file order.
-fn section_sizes(c: &Counts) -> [(&'static str, u64, usize); 6] {
+fn section_sizes(c: &Counts) -> [(&'static str, u64, usize); 8] {
     [
         ("triangles", c.triangles, size_of::<Triangle>()),
         ("triangle info", c.triangles, size_of::<TriangleInfo>()),
@@ -312,6 +325,8 @@ fn section_sizes(c: &Counts) -> [(&'static str, u64, usize); 6] {
         ("lights", c.lights, size_of::<Light>()),
         ("nodes", c.nodes, size_of::<KdNode>()),
         ("indices", c.indices, size_of::<u32>()),
+        ("vertex attributes", c.attributes, size_of::<TriangleAttributes>()),
+        ("textures", c.texture_words, size_of::<u32>()),
     ]
 }
 
@@ -342,6 +357,8 @@ struct Sections {
     lights: Vec<Light>,
     nodes: Vec<KdNode>,
     indices: Vec<u32>,
+    attributes: Vec<TriangleAttributes>,
+    textures: Vec<u32>,
 }
 
 impl Sections {
@@ -363,11 +380,17 @@ impl Sections {
                 let lights = section::<Light>(c.lights, input, next(c.lights, size_of::<Light>()))?;
                 let nodes = section::<KdNode>(c.nodes, input, next(c.nodes, size_of::<KdNode>()))?;
                 let indices = section::<u32>(c.indices, input, next(c.indices, size_of::<u32>()))?;
-                Ok((info, materials, lights, nodes, indices))
+                let attributes = section::<TriangleAttributes>(
+                    c.attributes,
+                    input,
+                    next(c.attributes, size_of::<TriangleAttributes>()),
+                )?;
+                let textures = section::<u32>(c.texture_words, input, next(c.texture_words, size_of::<u32>()))?;
+                Ok((info, materials, lights, nodes, indices, attributes, textures))
             })(),
         );
-        let (info, materials, lights, nodes, indices) = rest?;
-        Ok(Sections { triangles: triangles?, info, materials, lights, nodes, indices })
+        let (info, materials, lights, nodes, indices, attributes, textures) = rest?;
+        Ok(Sections { triangles: triangles?, info, materials, lights, nodes, indices, attributes, textures })
     }
 
     /// Feeds the sections to the checksum in file order.
@@ -378,6 +401,8 @@ impl Sections {
         h.update(bytemuck::cast_slice(&self.lights));
         h.update(bytemuck::cast_slice(&self.nodes));
         h.update(bytemuck::cast_slice(&self.indices));
+        h.update(bytemuck::cast_slice(&self.attributes));
+        h.update(bytemuck::cast_slice(&self.textures));
     }
 
     fn into_compiled(self, h: &Header) -> Compiled {
@@ -399,6 +424,9 @@ impl Sections {
             bounds_min: Vec3::from(lo),
             bounds_max: Vec3::from(hi),
             dropped_degenerate: h.dropped_degenerate,
+            attributes: self.attributes,
+            textures: self.textures,
+            texture_sources: h.texture_sources.clone(),
         };
         Compiled { origin: DVec3::from(h.origin), ..Compiled::new(scene, tree) }
     }
@@ -434,12 +462,25 @@ fn validate(h: &Header, s: &Sections) -> Result<()> {
 
 /// Counts, vertices, materials, per-triangle ids and the light table.
 fn check_scene(h: &Header, s: &Sections) -> Result<()> {
-    let Sections { triangles, info, materials, lights, .. } = s;
+    let Sections { triangles, info, materials, lights, attributes, textures, .. } = s;
     if triangles.len() >= 1 << 30 || lights.len() >= u32::MAX as usize || materials.len() >= u32::MAX as usize {
         bail!("too many triangles, lights or materials");
     }
     if h.material_names.len() != materials.len() {
         bail!("{} material names for {} materials", h.material_names.len(), materials.len());
+    }
+    let texture_count = h.counts.textures;
+    if h.texture_sources.len() as u64 != texture_count {
+        bail!("{} texture names for {texture_count} textures", h.texture_sources.len());
+    }
+    crate::scene::texture::check_packed(textures, texture_count as usize).map_err(|e| anyhow!("textures: {e}"))?;
+    if !attributes.is_empty() && attributes.len() != triangles.len() {
+        bail!("{} vertex attributes for {} triangles", attributes.len(), triangles.len());
+    }
+    for (i, a) in attributes.iter().enumerate() {
+        if ![a.n0, a.n1, a.n2, a.uv_v].iter().all(|v| v.is_finite()) {
+            bail!("triangle {i}: vertex attributes not finite");
+        }
     }
     for (i, t) in triangles.iter().enumerate() {
         for v in [t.v0, t.v1, t.v2] {
@@ -457,6 +498,9 @@ fn check_scene(h: &Header, s: &Sections) -> Result<()> {
         }
         if !rgb_ok(m.albedo) || !rgb_ok(m.emission) || !rgb_ok(m.eta) || !rgb_ok(m.k) || !m.params.is_finite() {
             bail!("material {i}: colours and indices of refraction must be finite and non-negative");
+        }
+        if let Some(t) = m.textures.iter().find(|&&t| t as u64 > texture_count) {
+            bail!("material {i}: texture {t} out of range ({texture_count} textures)");
         }
         if !(0.0..=1.0).contains(&m.params.x) {
             bail!("material {i}: roughness alpha {} must be within 0..=1", m.params.x);

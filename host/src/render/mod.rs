@@ -38,6 +38,9 @@ pub struct Compiled {
     /// World position of the scene's coordinate origin (`local_frame`): the scene and its tree
     /// are stored relative to it, cameras are given in world space (f64 both).
     pub origin: DVec3,
+    /// Whether a material that triangles use has an alpha mask: the CPU's traversals test hits
+    /// against masks only then (`SceneView::alpha_masks`).
+    pub alpha_masks: bool,
 }
 
 impl Compiled {
@@ -52,7 +55,8 @@ impl Compiled {
             lights.push(Light::default());
         }
         let blocks = leaf_blocks(&tree.indices, &scene.triangles);
-        Self { scene, tree, lights, blocks, origin: DVec3::ZERO }
+        let alpha_masks = features::uses_alpha_masks(&scene);
+        Self { scene, tree, lights, blocks, origin: DVec3::ZERO, alpha_masks }
     }
 
     /// The scene's bounds in world space (what a default camera frames).
@@ -116,7 +120,7 @@ impl Compiled {
     }
 
     pub fn view<'a>(&'a self, params: &RenderParams) -> SceneView<'a> {
-        SceneView::new(
+        let mut view = SceneView::new(
             params,
             &self.tree.nodes,
             &self.tree.indices,
@@ -125,7 +129,11 @@ impl Compiled {
             &self.scene.info,
             &self.scene.materials,
             &self.lights,
-        )
+            &self.scene.attributes,
+            &self.scene.textures,
+        );
+        view.alpha_masks = self.alpha_masks;
+        view
     }
 }
 

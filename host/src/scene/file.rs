@@ -9,14 +9,15 @@
 //! and those checks carry the span of the offending value as well.
 use crate::files::Files;
 use crate::scene::obj::{self, DEFAULT_ALBEDO, MAX_COORDINATE};
+use crate::scene::texture::{Kind, TextureSet};
 use crate::scene::transform::Placement;
-use crate::scene::{conductor, dielectric, diffuse, plastic, principled, Principled, WorldScene};
+use crate::scene::{conductor, dielectric, diffuse, plastic, principled, Principled, WorldAttributes, WorldScene};
 use crate::settings::scene::SceneSettings;
 use crate::settings::{SamplerKind, MAX_BOUNCES, MAX_SIDE, MAX_SPP};
 use anyhow::{anyhow, bail, Context, Result};
 use serde::{Deserialize, Serialize};
 use shared::glam::{DVec3, Vec3};
-use shared::layout::Material;
+use shared::layout::{Material, NO_TEXTURE, TEXTURE_ALBEDO};
 use shared::material::CONDUCTOR_PRESETS;
 use std::collections::BTreeMap;
 use std::ops::Range;
@@ -86,6 +87,10 @@ pub struct MaterialSection {
     /// Diffuse or plastic: the base's reflectance, linear RGB in 0..=1 (default 0.5 grey).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub albedo: Option<Albedo>,
+    /// Diffuse: a PNG or JPEG (sRGB) that replaces `albedo`, relative to the scene file, looked
+    /// up at the mesh's OBJ texture coordinates.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub albedo_texture: Option<Spanned<String>>,
     /// Emitted radiance from the front (counter-clockwise) side, linear RGB (default none).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub emission: Option<Color>,
@@ -107,6 +112,9 @@ pub struct MaterialSection {
     /// Principled: base colour, linear RGB in 0..=1 (default 0.8 grey).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub base_color: Option<Albedo>,
+    /// Principled: a PNG or JPEG (sRGB) that replaces `base_color`, as `albedo_texture` does.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub base_color_texture: Option<Spanned<String>>,
     /// Principled: metallic, 0..=1 (default 0).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub metallic: Option<Unit>,
@@ -125,6 +133,7 @@ pub struct RawMaterial {
     #[serde(rename = "type", default)]
     kind: MaterialKind,
     albedo: Option<Albedo>,
+    albedo_texture: Option<Spanned<String>>,
     emission: Option<Color>,
     metal: Option<String>,
     eta: Option<Color>,
@@ -132,6 +141,7 @@ pub struct RawMaterial {
     alpha: Option<Alpha>,
     ior: Option<Ior>,
     base_color: Option<Albedo>,
+    base_color_texture: Option<Spanned<String>>,
     metallic: Option<Unit>,
     roughness: Option<Unit>,
     transmission: Option<Unit>,
@@ -141,11 +151,13 @@ impl MaterialKind {
     /// The keys a material of this type takes besides `type` and `emission`.
     pub fn keys(self) -> &'static [&'static str] {
         match self {
-            MaterialKind::Diffuse => &["albedo"],
+            MaterialKind::Diffuse => &["albedo", "albedo_texture"],
             MaterialKind::Conductor => &["metal", "eta", "k", "alpha"],
             MaterialKind::Dielectric => &["ior", "alpha"],
-            MaterialKind::Plastic => &["albedo", "ior"],
-            MaterialKind::Principled => &["base_color", "metallic", "roughness", "transmission", "ior"],
+            MaterialKind::Plastic => &["albedo", "albedo_texture", "ior"],
+            MaterialKind::Principled => {
+                &["base_color", "base_color_texture", "metallic", "roughness", "transmission", "ior"]
+            }
         }
     }
 }
@@ -155,12 +167,14 @@ impl TryFrom<RawMaterial> for MaterialSection {
     fn try_from(r: RawMaterial) -> Result<Self, String> {
         let given = [
             ("albedo", r.albedo.is_some()),
+            ("albedo_texture", r.albedo_texture.is_some()),
             ("metal", r.metal.is_some()),
             ("eta", r.eta.is_some()),
             ("k", r.k.is_some()),
             ("alpha", r.alpha.is_some()),
             ("ior", r.ior.is_some()),
             ("base_color", r.base_color.is_some()),
+            ("base_color_texture", r.base_color_texture.is_some()),
             ("metallic", r.metallic.is_some()),
             ("roughness", r.roughness.is_some()),
             ("transmission", r.transmission.is_some()),
@@ -200,6 +214,7 @@ impl TryFrom<RawMaterial> for MaterialSection {
         Ok(Self {
             kind: r.kind,
             albedo: r.albedo,
+            albedo_texture: r.albedo_texture,
             emission: r.emission,
             metal: r.metal,
             eta: r.eta,
@@ -207,6 +222,7 @@ impl TryFrom<RawMaterial> for MaterialSection {
             alpha: r.alpha,
             ior: r.ior,
             base_color: r.base_color,
+            base_color_texture: r.base_color_texture,
             metallic: r.metallic,
             roughness: r.roughness,
             transmission: r.transmission,
@@ -684,9 +700,19 @@ pub fn resolve(path: &Path, text: &str, file: &SceneFile, files: &dyn Files) -> 
     let mut materials = Vec::new();
     let mut names = Vec::new();
     let mut index_of = BTreeMap::new();
+    let mut textures = TextureSet::default();
     for (name, m) in &file.materials {
         index_of.insert(name.as_str(), materials.len() as u32);
-        materials.push(scene_material(m));
+        let mut material = scene_material(m);
+        let texture = [("albedo_texture", &m.albedo_texture), ("base_color_texture", &m.base_color_texture)]
+            .into_iter()
+            .find_map(|(key, t)| t.as_ref().map(|t| (key, t)));
+        if let Some((key, t)) = texture {
+            let wanted_by = format!("{}: material {name:?}: {key} {:?}", at(t.span()), t.get_ref());
+            material.textures[TEXTURE_ALBEDO] =
+                textures.load(files, &dir.join(t.get_ref()), Kind::Colour, &wanted_by)?;
+        }
+        materials.push(material);
         names.push(name.clone());
     }
     let lookup = |name: &Spanned<String>| -> Result<u32> {
@@ -702,6 +728,7 @@ pub fn resolve(path: &Path, text: &str, file: &SceneFile, files: &dyn Files) -> 
     };
     let mut triangles = Vec::new();
     let mut material_of = Vec::new();
+    let mut attributes: Vec<WorldAttributes> = Vec::new();
     let mut warnings = Vec::new();
     for m in &file.meshes {
         let mesh_path = dir.join(m.file.get_ref());
@@ -722,11 +749,17 @@ pub fn resolve(path: &Path, text: &str, file: &SceneFile, files: &dyn Files) -> 
         }
         // The global index of each of this mesh's local materials.
         let mut global = Vec::with_capacity(mesh.scene.materials.len());
+        // The mesh's textures join the scene's; its materials' slots move with them.
+        let shift = textures.append(mesh.scene.textures);
         for (local, name) in mesh.scene.material_names.iter().enumerate() {
             let g = match by_name.get(name.as_str()).copied().or(whole) {
                 Some(g) => g,
                 None => {
-                    materials.push(mesh.scene.materials[local]);
+                    let mut material = mesh.scene.materials[local];
+                    for slot in material.textures.iter_mut().filter(|t| **t != NO_TEXTURE) {
+                        *slot += shift;
+                    }
+                    materials.push(material);
                     names.push(name.clone());
                     materials.len() as u32 - 1
                 }
@@ -735,6 +768,14 @@ pub fn resolve(path: &Path, text: &str, file: &SceneFile, files: &dyn Files) -> 
         }
         let mut placed = mesh.scene.triangles;
         placement(m).apply(&mut placed);
+        let mut placed_attributes = mesh.scene.attributes;
+        placement(m).apply_attributes(&mut placed_attributes);
+        // One entry per triangle once any mesh has attributes (defaults for those without).
+        if !placed_attributes.is_empty() || !attributes.is_empty() {
+            attributes.resize(triangles.len(), WorldAttributes::default());
+            placed_attributes.resize(placed.len(), WorldAttributes::default());
+            attributes.extend(placed_attributes);
+        }
         for v in placed.iter().flatten() {
             if !v.is_finite() || v.abs().max_element() > MAX_COORDINATE as f64 {
                 bail!(
@@ -748,7 +789,10 @@ pub fn resolve(path: &Path, text: &str, file: &SceneFile, files: &dyn Files) -> 
         material_of.extend(mesh.scene.material_of.iter().map(|&l| global[l as usize]));
         warnings.extend(mesh.warnings);
     }
-    let scene = WorldScene { triangles, material_of, materials, material_names: names };
+    if !attributes.is_empty() {
+        attributes.resize(triangles.len(), WorldAttributes::default());
+    }
+    let scene = WorldScene { triangles, material_of, materials, material_names: names, attributes, textures };
     Ok(Resolved { scene, settings: settings_of(file), warnings })
 }
 
@@ -772,16 +816,24 @@ fn relative_path(to: &Path, from: &Path) -> PathBuf {
     out
 }
 
-/// Rewrites each mesh path (relative to `scene_path`'s folder) to be relative to `out_path`'s.
+/// Rewrites each mesh and texture path (relative to `scene_path`'s folder) to be relative to
+/// `out_path`'s.
 pub fn rebase_meshes(file: &mut SceneFile, scene_path: &Path, out_path: &Path) -> Result<()> {
     let out_dir = absolute_dir(out_path)?;
     let scene_dir = absolute_dir(scene_path)?;
-    for m in &mut file.meshes {
-        let abs = scene_dir.join(m.file.get_ref());
+    let rebase = |file: &str| -> Result<String> {
+        let abs = scene_dir.join(file);
         let abs = abs.canonicalize().unwrap_or(abs);
         let rel = relative_path(&abs, &out_dir);
-        let rel = rel.to_str().ok_or_else(|| anyhow!("{}: path is not UTF-8", rel.display()))?.to_string();
-        m.file = Spanned::new(0..0, rel);
+        Ok(rel.to_str().ok_or_else(|| anyhow!("{}: path is not UTF-8", rel.display()))?.to_string())
+    };
+    for m in &mut file.meshes {
+        m.file = Spanned::new(0..0, rebase(m.file.get_ref())?);
+    }
+    for m in file.materials.values_mut() {
+        for t in [&mut m.albedo_texture, &mut m.base_color_texture].into_iter().flatten() {
+            *t = Spanned::new(0..0, rebase(t.get_ref())?);
+        }
     }
     Ok(())
 }

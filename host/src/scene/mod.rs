@@ -3,18 +3,20 @@
 //!
 //! This module holds the in-memory scene: triangles in the scene's local frame (f32, as both
 //! devices read them), their materials and the light table; and the world-space scene it is made
-//! from, kept in f64 until it is placed (`WorldScene`).
+//! from, kept in f64 until it is placed (`WorldScene`). Vertex attributes (`WorldAttributes`:
+//! vertex normals and texture coordinates) and textures (`texture`) travel with the triangles.
 pub mod file;
 pub mod local_frame;
 pub mod obj;
 pub mod procedural;
+pub mod texture;
 pub mod transform;
 
 use anyhow::{bail, Result};
 use shared::glam::{DVec3, Vec3, Vec4};
 use shared::layout::{
-    Light, Material, Triangle, TriangleInfo, MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, MATERIAL_DIFFUSE,
-    MATERIAL_PLASTIC, MATERIAL_PRINCIPLED, NO_LIGHT,
+    Light, Material, Triangle, TriangleAttributes, TriangleInfo, MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC,
+    MATERIAL_DIFFUSE, MATERIAL_PLASTIC, MATERIAL_PRINCIPLED, NO_LIGHT, NO_TEXTURE,
 };
 use shared::material::is_emissive;
 use shared::triangle::area;
@@ -31,6 +33,13 @@ pub struct Scene {
     pub bounds_max: Vec3,
     /// Zero-area triangles dropped while loading.
     pub dropped_degenerate: usize,
+    /// Per triangle its vertex normals and texture coordinates, or empty when no triangle has
+    /// any (`shared::layout::TriangleAttributes`).
+    pub attributes: Vec<TriangleAttributes>,
+    /// The texture buffer (`shared::texture`; empty without textures) and each texture's image
+    /// file, in table order.
+    pub textures: Vec<u32>,
+    pub texture_sources: Vec<String>,
 }
 
 /// A triangle in world coordinates, f64 as read and placed.
@@ -47,6 +56,29 @@ pub fn round_triangle(t: &WorldTriangle) -> Triangle {
     Triangle { v0: v(t[0]), v1: v(t[1]), v2: v(t[2]) }
 }
 
+/// A triangle's vertex attributes as read and placed (f64): unit vertex normals (all zero: none,
+/// the triangle shades flat) and texture coordinates (u, v) of v0, v1, v2 ((0, 0) where the
+/// mesh gives none).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct WorldAttributes {
+    pub normals: [DVec3; 3],
+    pub uv: [[f64; 2]; 3],
+}
+
+impl WorldAttributes {
+    /// Rounded to f32 in the renderers' layout.
+    pub fn round(&self) -> TriangleAttributes {
+        let [n0, n1, n2] = self.normals.map(|n| n.as_vec3());
+        let [a, b, c] = self.uv.map(|t| [t[0] as f32, t[1] as f32]);
+        TriangleAttributes {
+            n0: n0.extend(a[0]),
+            n1: n1.extend(b[0]),
+            n2: n2.extend(c[0]),
+            uv_v: Vec4::new(a[1], b[1], c[1], 0.0),
+        }
+    }
+}
+
 /// A scene as read and placed, before it is moved next to the origin and rounded to f32
 /// (`into_local`).
 #[derive(Clone, Debug, Default)]
@@ -56,6 +88,10 @@ pub struct WorldScene {
     pub material_of: Vec<u32>,
     pub materials: Vec<Material>,
     pub material_names: Vec<String>,
+    /// Per triangle, or empty when no triangle has vertex normals or texture coordinates.
+    pub attributes: Vec<WorldAttributes>,
+    /// The images the materials' texture slots name.
+    pub textures: texture::TextureSet,
 }
 
 impl WorldScene {
@@ -63,7 +99,16 @@ impl WorldScene {
     /// to f32 once) and the world position of that frame's origin.
     pub fn into_local(self) -> Result<(Scene, DVec3)> {
         let (triangles, origin) = crate::scene::local_frame::place(&self.triangles);
-        Ok((Scene::new(triangles, self.material_of, self.materials, self.material_names)?, origin))
+        let attributes = self.attributes.iter().map(WorldAttributes::round).collect();
+        let scene = Scene::with_surfaces(
+            triangles,
+            self.material_of,
+            self.materials,
+            self.material_names,
+            attributes,
+            &self.textures.textures,
+        )?;
+        Ok((scene, origin))
     }
 }
 
@@ -76,6 +121,7 @@ pub fn diffuse(albedo: Vec3, emission: Vec3) -> Material {
         params: Vec4::ZERO,
         eta: Vec4::ZERO,
         k: Vec4::ZERO,
+        textures: [NO_TEXTURE; 8],
     }
 }
 
@@ -131,16 +177,38 @@ impl Scene {
         materials: Vec<Material>,
         material_names: Vec<String>,
     ) -> Result<Self> {
+        Self::with_surfaces(triangles, material_of, materials, material_names, Vec::new(), &[])
+    }
+
+    /// `new` with vertex attributes (one per triangle, or none) and the textures the materials'
+    /// slots name (slot value 1 + index into `textures`).
+    pub fn with_surfaces(
+        triangles: Vec<Triangle>,
+        material_of: Vec<u32>,
+        materials: Vec<Material>,
+        material_names: Vec<String>,
+        attributes: Vec<TriangleAttributes>,
+        textures: &[texture::Texture],
+    ) -> Result<Self> {
         if triangles.len() != material_of.len() {
             bail!("{} triangles but {} material indices", triangles.len(), material_of.len());
+        }
+        if !attributes.is_empty() && attributes.len() != triangles.len() {
+            bail!("{} triangles but {} vertex attributes", triangles.len(), attributes.len());
+        }
+        for (i, m) in materials.iter().enumerate() {
+            if let Some(&slot) = m.textures.iter().find(|&&t| t as usize > textures.len()) {
+                bail!("material {i}: texture {slot} out of range ({} textures)", textures.len());
+            }
         }
         if triangles.len() >= (1 << 30) {
             bail!("{} triangles: at most 2^30 are supported", triangles.len());
         }
         let mut kept = Vec::with_capacity(triangles.len());
         let mut info = Vec::with_capacity(triangles.len());
+        let mut kept_attributes = Vec::with_capacity(attributes.len());
         let mut dropped = 0;
-        for (t, &m) in triangles.iter().zip(&material_of) {
+        for (i, (t, &m)) in triangles.iter().zip(&material_of).enumerate() {
             if m as usize >= materials.len() {
                 bail!("material index {m} out of range ({} materials)", materials.len());
             }
@@ -155,6 +223,9 @@ impl Scene {
             }
             kept.push(*t);
             info.push(TriangleInfo { material: m, light: NO_LIGHT });
+            if let Some(a) = attributes.get(i) {
+                kept_attributes.push(*a);
+            }
         }
         let mut lights = Vec::new();
         let mut total = 0.0f64;
@@ -198,6 +269,9 @@ impl Scene {
             bounds_min: lo,
             bounds_max: hi,
             dropped_degenerate: dropped,
+            attributes: kept_attributes,
+            textures: if textures.is_empty() { Vec::new() } else { texture::pack(textures)? },
+            texture_sources: textures.iter().map(|t| t.source.display().to_string()).collect(),
         })
     }
 }

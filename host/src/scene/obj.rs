@@ -2,6 +2,16 @@
 //! diffuse albedo, `Ke` the one-sided emission, `illum` 3/5 a mirror and 4/6/7 glass
 //! (`mtl_material`); a mesh without a material is grey diffuse.
 //!
+//! Surfaces: `vt` texture coordinates and `vn` vertex normals (`WorldAttributes`), and the
+//! texture maps `map_Kd` (albedo, sRGB), `map_Ke` (emission, sRGB; the material's constant
+//! emission becomes the texture's mean, which weighs it in the light table), `map_d` (alpha
+//! mask, linear), and the PBR extension keys `map_Pr` (perceptual roughness r, α = r²) and
+//! `map_Pm` (metallic), each replacing the constant it covers (`shared::surface::resolve`). A
+//! constant dissolve `d` (or `Tr` = 1 − d) below 0.5 cuts the material's faces out entirely,
+//! the same threshold as a mask (glass, `illum` 4/6/7, ignores it: it is transparent by its
+//! own model). `map_Ka`, `map_Ks`, `map_Ns` and bump maps are checked to exist and ignored,
+//! with a warning.
+//!
 //! tobj accepts `nan`, `inf` and `1e39` coordinates and reports errors without a line, so the
 //! vertex lines are checked here first, and every error names the file (and line where it can):
 //! the OBJ, or the MTL library a material or texture came from. Point (`p`) and line (`l`)
@@ -11,11 +21,14 @@
 //! Format reference: Wavefront's "Object Files (.obj)" and "MTL material format" appendices
 //! (<https://paulbourke.net/dataformats/obj/>, <https://paulbourke.net/dataformats/mtl/>).
 use crate::files::{Disk, Files};
-use crate::scene::{conductor, dielectric, diffuse, principled, Principled, Scene, WorldScene};
+use crate::scene::texture::{Kind, TextureSet};
+use crate::scene::{conductor, dielectric, diffuse, principled, Principled, Scene, WorldAttributes, WorldScene};
 use anyhow::{anyhow, bail, Context, Result};
 use shared::glam::{DVec3, Vec3};
+use shared::layout::{TEXTURE_ALBEDO, TEXTURE_ALPHA, TEXTURE_EMISSION, TEXTURE_METALLIC, TEXTURE_ROUGHNESS};
 use std::borrow::Cow;
 use std::cell::RefCell;
+use std::collections::HashMap;
 use std::io::{Cursor, ErrorKind};
 use std::path::{Path, PathBuf};
 
@@ -41,12 +54,16 @@ struct Scan {
     /// Whether there are `p` or `l` lines: tobj 4 reads an `l` of three or more vertices as a
     /// polygon, so they are blanked out before tobj sees the text.
     has_point_or_line_statements: bool,
+    /// For each triangle the faces become (a face of n corners: n − 2, in file order, as tobj
+    /// fan-triangulates them), whether its face gives texture coordinates and normals: tobj
+    /// gives a corner without them the previous corner's, which is not the face's own.
+    face_attributes: Vec<(bool, bool)>,
 }
 
 /// Checks every `v` line for three finite, representable coordinates and counts `p`/`l`
 /// elements.
 fn scan_lines(path: &Path, text: &str) -> Result<Scan> {
-    let mut scan = Scan { skipped_elements: 0, has_point_or_line_statements: false };
+    let mut scan = Scan { skipped_elements: 0, has_point_or_line_statements: false, face_attributes: Vec::new() };
     let mut vertices = 0i64;
     for (number, line) in text.lines().enumerate() {
         let mut words = line.split_whitespace();
@@ -58,6 +75,11 @@ fn scan_lines(path: &Path, text: &str) -> Result<Scan> {
                 let corners: Vec<&str> = words.collect();
                 if corners.len() < 3 {
                     scan.skipped_elements += 1;
+                } else {
+                    let part = |c: &str, k: usize| c.split('/').nth(k).is_some_and(|p| !p.is_empty());
+                    let vt = corners.iter().all(|c| part(c, 1));
+                    let vn = corners.iter().all(|c| part(c, 2));
+                    scan.face_attributes.extend(std::iter::repeat_n((vt, vn), corners.len() - 2));
                 }
                 for corner in corners {
                     // Every part present must be an index (tobj reports a bad one without a line).
@@ -97,6 +119,31 @@ fn scan_lines(path: &Path, text: &str) -> Result<Scan> {
                 scan.has_point_or_line_statements = true;
                 continue;
             }
+            Some(key @ ("vt" | "vn")) => {
+                // u [v [w]] or x y z: finite numbers (tobj reports a bad one without a line).
+                let values: Vec<&str> = words.collect();
+                let counts = if key == "vt" { 1..=3 } else { 3..=3 };
+                if !counts.contains(&values.len()) {
+                    bail!(
+                        "{}:{}: {key} needs {counts:?} numbers, not {}: {line:?}",
+                        path.display(),
+                        number + 1,
+                        values.len()
+                    );
+                }
+                for c in values {
+                    let x: f64 =
+                        c.parse().map_err(|_| anyhow!("{}:{}: not a number: {c:?}", path.display(), number + 1))?;
+                    if !x.is_finite() || x.abs() > MAX_COORDINATE as f64 {
+                        bail!(
+                            "{}:{}: {key} value {c} is not finite or beyond ±{MAX_COORDINATE:e}",
+                            path.display(),
+                            number + 1
+                        );
+                    }
+                }
+                continue;
+            }
             _ => continue,
         }
         let values: Vec<&str> = words.collect();
@@ -126,7 +173,8 @@ fn scan_lines(path: &Path, text: &str) -> Result<Scan> {
 /// conductor reflecting `Ks` at normal incidence (η = 1 and κ = 2√(Ks/(1 − Ks)) per channel,
 /// whose Fresnel reflectance at normal incidence is Ks; Ks ≥ 1 a perfect mirror); 4, 6 and 7
 /// (glass) a smooth dielectric of index `Ni` (1.5 when absent; `Tf` and `Ks` tints are not
-/// modelled). Any other: with the PBR extension's `Pr` (roughness) or `Pm` (metallic), a
+/// modelled). Any other: with the PBR extension's `Pr` (roughness) or `Pm` (metallic), or their
+/// maps `map_Pr`, `map_Pm` (which replace them at each hit), a
 /// principled material of base colour `Kd`, index `Ni` (default 1.5), roughness `Pr` (default
 /// 0.5) and metallic `Pm` (default 0); with a non-black `Ks`, a principled dielectric whose
 /// specular lobe reflects Ks at normal incidence (its luminance, at most 0.96, as F0, so
@@ -157,8 +205,9 @@ fn mtl_material(m: &tobj::Material, kd: Vec3, ke: Vec3) -> shared::layout::Mater
             // `check_mtl_lines` has checked that these parse and lie within 0..=1.
             let pbr = |key: &str| m.unknown_param.get(key).and_then(|v| v.trim().parse::<f32>().ok());
             let (pr, pm) = (pbr("Pr"), pbr("Pm"));
+            let maps = m.unknown_param.contains_key("map_Pr") || m.unknown_param.contains_key("map_Pm");
             let ks = m.specular.map_or(Vec3::ZERO, |c| Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32));
-            if pr.is_some() || pm.is_some() {
+            if pr.is_some() || pm.is_some() || maps {
                 let ni = m.optical_density.filter(|n| n.is_finite() && (1e-3..=100.0).contains(n)).unwrap_or(1.5);
                 let p = Principled {
                     base_color: kd,
@@ -231,6 +280,29 @@ fn check_mtl_lines(path: &Path, text: &str) -> Result<()> {
     Ok(())
 }
 
+/// The MTL keys whose line an error names (texture maps and dissolve).
+const LINE_KEYS: [&str; 7] = ["map_Kd", "map_d", "map_Ke", "map_Pr", "map_Pm", "d", "Tr"];
+
+/// (material, key) → 1-based line of a statement.
+type KeyLines = HashMap<(String, String), usize>;
+
+/// The line of each `LINE_KEYS` statement in an MTL text.
+fn key_lines(text: &str) -> KeyLines {
+    let mut material = String::new();
+    let mut out = HashMap::new();
+    for (number, line) in text.lines().enumerate() {
+        let mut words = line.split_whitespace();
+        match words.next() {
+            Some("newmtl") => material = words.next().unwrap_or("").to_string(),
+            Some(key) if LINE_KEYS.contains(&key) => {
+                out.insert((material.clone(), key.to_string()), number + 1);
+            }
+            _ => {}
+        }
+    }
+    out
+}
+
 /// A warning for each material that `usemtl` names but no library defines (its faces render
 /// grey diffuse), with the first line that names it.
 fn undefined_materials(path: &Path, text: &str, defined: &[String]) -> Vec<String> {
@@ -284,7 +356,9 @@ pub fn load_obj(path: &Path) -> Result<Scene> {
     let mesh = load_mesh(path, &Disk)?;
     let m = mesh.scene;
     let triangles = m.triangles.iter().map(crate::scene::round_triangle).collect();
-    Scene::new(triangles, m.material_of, m.materials, m.material_names).with_context(|| format!("{}", path.display()))
+    let attributes = m.attributes.iter().map(WorldAttributes::round).collect();
+    Scene::with_surfaces(triangles, m.material_of, m.materials, m.material_names, attributes, &m.textures.textures)
+        .with_context(|| format!("{}", path.display()))
 }
 
 /// Reads and parses an OBJ file and the MTL libraries it names.
@@ -311,6 +385,7 @@ pub fn parse_mesh(path: &Path, bytes: &[u8], files: &dyn Files) -> Result<Mesh> 
     // tobj merges the libraries in the order it meets them; remember which file each range of
     // materials came from so that errors can name it.
     let libraries: RefCell<Vec<(PathBuf, usize)>> = RefCell::new(Vec::new());
+    let lines: RefCell<HashMap<PathBuf, KeyLines>> = RefCell::new(HashMap::new());
     let problems: RefCell<Vec<anyhow::Error>> = RefCell::new(Vec::new());
     let missing: RefCell<Vec<PathBuf>> = RefCell::new(Vec::new());
     let loader = |name: &Path| -> tobj::MTLLoadResult {
@@ -331,6 +406,7 @@ pub fn parse_mesh(path: &Path, bytes: &[u8], files: &dyn Files) -> Result<Mesh> 
             problems.borrow_mut().push(e);
             return Err(tobj::LoadError::MaterialParseError);
         }
+        lines.borrow_mut().insert(full.clone(), key_lines(&text));
         let result = tobj::load_mtl_buf(&mut Cursor::new(text.as_bytes()));
         match &result {
             Ok((mats, _)) => libraries.borrow_mut().push((full, mats.len())),
@@ -360,7 +436,11 @@ pub fn parse_mesh(path: &Path, bytes: &[u8], files: &dyn Files) -> Result<Mesh> 
     }
     let mut mats = Vec::with_capacity(mtl.len() + 1);
     let mut names = Vec::with_capacity(mtl.len() + 1);
-    let mut textures = 0;
+    let mut textures = TextureSet::default();
+    // Materials whose constant dissolve cuts their faces out.
+    let mut invisible = vec![false; mtl.len() + 1];
+    let mut ignored = 0;
+    let lines = lines.into_inner();
     for (i, m) in mtl.iter().enumerate() {
         let library = source.get(i).map(|p| p.as_path()).unwrap_or(path);
         let kd = m.diffuse.map_or([DEFAULT_ALBEDO; 3], |c| c.map(|x| x as f32));
@@ -370,28 +450,65 @@ pub fn parse_mesh(path: &Path, bytes: &[u8], files: &dyn Files) -> Result<Mesh> 
                 bail!("{}: material {:?}: {what} {v:?} must be finite and non-negative", library.display(), m.name);
             }
         }
-        let maps = [
-            &m.diffuse_texture,
-            &m.ambient_texture,
-            &m.specular_texture,
-            &m.normal_texture,
-            &m.shininess_texture,
-            &m.dissolve_texture,
-        ];
-        for value in maps.into_iter().flatten() {
+        // `file:line` of a key of this material, or the file where the line is unknown.
+        let at = |key: &str| match lines.get(library).and_then(|l| l.get(&(m.name.clone(), key.to_string()))) {
+            Some(n) => format!("{}:{n}", library.display()),
+            None => library.display().to_string(),
+        };
+        let dir = library.parent().unwrap_or(Path::new(""));
+        for value in
+            [&m.ambient_texture, &m.specular_texture, &m.normal_texture, &m.shininess_texture].into_iter().flatten()
+        {
             let Some(file) = texture_file(value) else { continue };
-            let full = library.parent().unwrap_or(Path::new("")).join(file);
+            let full = dir.join(file);
             if !files.exists(&full) {
                 bail!("{}: material {:?}: texture {file:?} not found ({})", library.display(), m.name, full.display());
             }
-            textures += 1;
+            ignored += 1;
         }
-        mats.push(mtl_material(m, Vec3::from(kd), Vec3::from(ke)));
+        let mut mat = mtl_material(m, Vec3::from(kd), Vec3::from(ke));
+        let extension = |key: &str| m.unknown_param.get(key).cloned();
+        let maps = [
+            ("map_Kd", m.diffuse_texture.clone(), TEXTURE_ALBEDO, Kind::Colour),
+            ("map_d", m.dissolve_texture.clone(), TEXTURE_ALPHA, Kind::Alpha),
+            ("map_Ke", extension("map_Ke"), TEXTURE_EMISSION, Kind::Colour),
+            ("map_Pr", extension("map_Pr"), TEXTURE_ROUGHNESS, Kind::Value),
+            ("map_Pm", extension("map_Pm"), TEXTURE_METALLIC, Kind::Value),
+        ];
+        for (key, value, slot, kind) in maps {
+            let Some(file) = value.as_deref().and_then(texture_file) else { continue };
+            let wanted_by = format!("{}: material {:?}: {key} {file:?}", at(key), m.name);
+            mat.textures[slot] = textures.load(files, &dir.join(file), kind, &wanted_by)?;
+        }
+        if mat.textures[TEXTURE_EMISSION] != shared::layout::NO_TEXTURE {
+            let mean = textures.textures[mat.textures[TEXTURE_EMISSION] as usize - 1].mean_rgb();
+            mat.emission = Vec3::from(mean).extend(0.0);
+        }
+        // Constant dissolve: `d`, or `Tr` (transparency, 1 − d) where no `d` is given.
+        let dissolve = match (m.dissolve, extension("Tr")) {
+            (Some(d), _) => Some((d, "d")),
+            (None, Some(tr)) => {
+                let tr: f64 = tr
+                    .trim()
+                    .parse()
+                    .map_err(|_| anyhow!("{}: material {:?}: Tr {tr:?} is not a number", at("Tr"), m.name))?;
+                Some((1.0 - tr, "Tr"))
+            }
+            (None, None) => None,
+        };
+        if let Some((d, key)) = dissolve {
+            if !(0.0..=1.0).contains(&d) {
+                bail!("{}: material {:?}: {key} gives dissolve {d}, not within 0..=1", at(key), m.name);
+            }
+            let glass = matches!(m.illumination_model, Some(4 | 6 | 7));
+            invisible[i] = d < shared::layout::ALPHA_CUTOFF as f64 && !glass;
+        }
+        mats.push(mat);
         names.push(m.name.clone());
     }
-    if textures > 0 {
+    if ignored > 0 {
         warnings.push(format!(
-            "{}: {textures} texture maps ignored (textures are not supported yet; Kd is used)",
+            "{}: {ignored} texture maps ignored (map_Ka, map_Ks, map_Ns and bump maps are not supported)",
             path.display()
         ));
     }
@@ -404,6 +521,22 @@ pub fn parse_mesh(path: &Path, bytes: &[u8], files: &dyn Files) -> Result<Mesh> 
 
     let mut triangles = Vec::new();
     let mut material_of = Vec::new();
+    let mut attributes = Vec::new();
+    let mut cut = 0usize;
+    let faces = &scan.face_attributes;
+    let surfaces = faces.iter().any(|&(vt, vn)| vt || vn);
+    // Each triangle's face, when tobj made as many triangles as the faces promise; otherwise
+    // (never seen) attributes only where every face has them.
+    let per_face = faces.len() == models.iter().map(|m| m.mesh.indices.len() / 3).sum::<usize>();
+    let every = (faces.iter().all(|f| f.0), faces.iter().all(|f| f.1));
+    if surfaces && !per_face {
+        warnings.push(format!(
+            "{}: faces and triangles do not match up; texture coordinates and vertex normals are used only where \
+             every face has them",
+            path.display()
+        ));
+    }
+    let mut triangle = 0;
     for model in &models {
         let mesh = &model.mesh;
         let material = match mesh.material_id {
@@ -423,10 +556,55 @@ pub fn parse_mesh(path: &Path, bytes: &[u8], files: &dyn Files) -> Result<Mesh> 
                 ),
             }
         };
-        for f in mesh.indices.as_chunks::<3>().0 {
+        // tobj gives a corner without vt or vn the previous corner's (its documented fallback),
+        // so the index lists are as long as the positions' whenever the file has any; the
+        // scan says which faces really have them.
+        let uvs = mesh.texcoord_indices.len() == mesh.indices.len();
+        let normals = mesh.normal_indices.len() == mesh.indices.len();
+        for (k, f) in mesh.indices.as_chunks::<3>().0.iter().enumerate() {
+            let (has_uv, has_normals) = if per_face { faces[triangle] } else { every };
+            triangle += 1;
+            if invisible[material as usize] {
+                cut += 1;
+                continue;
+            }
             triangles.push([vertex(f[0])?, vertex(f[1])?, vertex(f[2])?]);
             material_of.push(material);
+            if !surfaces {
+                continue;
+            }
+            let mut a = WorldAttributes::default();
+            for j in 0..3 {
+                let corner = 3 * k + j;
+                if uvs && has_uv {
+                    let t = mesh.texcoord_indices[corner] as usize;
+                    if let Some(uv) = mesh.texcoords.get(2 * t..2 * t + 2) {
+                        a.uv[j] = [uv[0], uv[1]];
+                    }
+                }
+                if normals && has_normals {
+                    let n = mesh.normal_indices[corner] as usize;
+                    if let Some(n) = mesh.normals.get(3 * n..3 * n + 3) {
+                        a.normals[j] = DVec3::new(n[0], n[1], n[2]);
+                    }
+                }
+            }
+            // Unit normals, or none for the whole triangle when one of them has no direction.
+            let lengths = a.normals.map(|n| n.length());
+            a.normals = if lengths.iter().all(|l| l.is_finite() && *l > 0.0) {
+                [0, 1, 2].map(|j| a.normals[j] / lengths[j])
+            } else {
+                [DVec3::ZERO; 3]
+            };
+            attributes.push(a);
         }
+    }
+    if cut > 0 {
+        warnings.push(format!(
+            "{}: {cut} faces cut out: their material's dissolve (d, or 1 − Tr) is below {}",
+            path.display(),
+            shared::layout::ALPHA_CUTOFF
+        ));
     }
     if triangles.is_empty() {
         bail!("{}: no triangles", path.display());
@@ -438,5 +616,8 @@ pub fn parse_mesh(path: &Path, bytes: &[u8], files: &dyn Files) -> Result<Mesh> 
             scan.skipped_elements
         ));
     }
-    Ok(Mesh { scene: WorldScene { triangles, material_of, materials: mats, material_names: names }, warnings })
+    Ok(Mesh {
+        scene: WorldScene { triangles, material_of, materials: mats, material_names: names, attributes, textures },
+        warnings,
+    })
 }

@@ -14,7 +14,7 @@
 //!
 //! Placement runs in f64 on f64 vertices (`WorldTriangle`): a mesh placed at survey coordinates
 //! is rounded to f32 once, in the scene's local frame (`local_frame::place`).
-use crate::scene::WorldTriangle;
+use crate::scene::{WorldAttributes, WorldTriangle};
 use shared::glam::{DMat3, DMat4, DQuat, DVec3, EulerRot};
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -65,6 +65,22 @@ impl Placement {
             *t = if swap { [v0, v2, v1] } else { [v0, v1, v2] };
         }
     }
+
+    /// Places the vertex attributes of the triangles `apply` places: normals by the inverse
+    /// transpose of the linear part, (R·S)⁻ᵀ = R·S⁻¹ (pbrt-v4 §3.10.3), renormalised in f64; the
+    /// vertices' attributes swap with the vertices of a mirrored triangle.
+    pub fn apply_attributes(&self, attributes: &mut [WorldAttributes]) {
+        if self.is_identity() {
+            return;
+        }
+        let (rotation, inverse_scale) = (self.rotation(), self.scale.recip());
+        let swap = self.mirrors();
+        for a in attributes {
+            let n = a.normals.map(|n| if n == DVec3::ZERO { n } else { (rotation * (n * inverse_scale)).normalize() });
+            let uv = a.uv;
+            (a.normals, a.uv) = if swap { ([n[0], n[2], n[1]], [uv[0], uv[2], uv[1]]) } else { (n, uv) };
+        }
+    }
 }
 
 #[cfg(test)]
@@ -104,5 +120,30 @@ mod tests {
         Placement { scale: DVec3::new(-1.0, 1.0, 1.0), ..Default::default() }.apply(&mut tris);
         // Mirroring across x = 0 leaves a +z-facing face facing +z.
         assert!(normal(&tris[0]).z > 0.0);
+    }
+
+    #[test]
+    fn normals_follow_the_surface_under_any_placement() {
+        // A slanted face with its unit normal at each vertex; after a non-uniform, mirroring
+        // placement the placed normal must be perpendicular to the placed face and unit.
+        let t = [DVec3::ZERO, DVec3::new(1.0, 0.0, 1.0), DVec3::Y];
+        let n = (t[1] - t[0]).cross(t[2] - t[0]).normalize();
+        let p = Placement {
+            scale: DVec3::new(3.0, -0.5, 1.0),
+            rotate_deg: DVec3::new(10.0, 20.0, 30.0),
+            translate: DVec3::new(1.0, 2.0, 3.0),
+        };
+        let mut tris = [t];
+        let mut attributes = [WorldAttributes { normals: [n; 3], uv: [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]] }];
+        p.apply(&mut tris);
+        p.apply_attributes(&mut attributes);
+        let placed = (tris[0][1] - tris[0][0]).cross(tris[0][2] - tris[0][0]).normalize();
+        for m in attributes[0].normals {
+            assert!((m.length() - 1.0).abs() < 1e-12);
+            // The same side as the placed face's front (the winding swap keeps the front).
+            assert!((m - placed).length() < 1e-12, "{m} vs {placed}");
+        }
+        // The texture coordinates moved with their vertices.
+        assert_eq!(attributes[0].uv, [[0.0, 0.0], [0.0, 1.0], [1.0, 0.0]]);
     }
 }

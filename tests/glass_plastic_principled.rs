@@ -2,6 +2,8 @@
 //! sampling (χ² in `chi2.rs`): energy (a furnace per material: the sampled directional albedo
 //! against the quadrature of f·|cos| over the sphere, never above 1), reciprocity of reflection
 //! and the η² rule of refraction, and how scene files and MTL files state them.
+#[path = "common/run.rs"]
+mod run;
 use kdtrace::{
     kdbuild::BuildSettings,
     scene::{dielectric, plastic, principled, Principled},
@@ -264,11 +266,7 @@ fn scene_files_state_the_new_materials_and_export_keeps_them() {
     // α = roughness².
     assert_eq!(m[2].params.to_array(), [0.25, 1.45, 0.25, 0.1]);
     let out = dir.join("exported.toml");
-    let o = std::process::Command::new(env!("CARGO_BIN_EXE_kdtrace"))
-        .args(["export", path.to_str().unwrap(), "--out", out.to_str().unwrap()])
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    run::export(&path, &out);
     assert_eq!(materials_of(&kdtrace::load(&out, BuildSettings::default()).unwrap()), m);
 }
 

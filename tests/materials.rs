@@ -3,6 +3,8 @@
 //! reciprocity, energy (a furnace per material: what sampling returns on average against the
 //! quadrature of f·cos, never above 1), the smooth mirror, and a render of a mirror furnace
 //! whose every pixel has a known value.
+#[path = "common/run.rs"]
+mod run;
 use kdtrace::{
     compile,
     kdbuild::BuildSettings,
@@ -219,11 +221,7 @@ fn scene_files_state_conductors_and_export_keeps_them() {
         (Vec3::new(0.2, 0.9, 1.1), Vec3::new(3.9, 2.4, 2.1), 0.0)
     );
     let out = dir.join("exported.toml");
-    let o = std::process::Command::new(env!("CARGO_BIN_EXE_kdtrace"))
-        .args(["export", path.to_str().unwrap(), "--out", out.to_str().unwrap()])
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    run::export(&path, &out);
     let again = kdtrace::load(&out, BuildSettings::default()).unwrap();
     assert_eq!(mats(&again), m);
 }

@@ -1,6 +1,8 @@
 //! Textures, texture coordinates, vertex normals and alpha cut-outs, end to end: scenes written
 //! here (OBJ, MTL, PNG and JPEG made by the test), loaded, rendered on the CPU and on lavapipe
 //! (bit for bit the same, specialised and generic), and their error messages.
+#[path = "common/run.rs"]
+mod run;
 use kdtrace::kdbuild::BuildSettings;
 use kdtrace::render::{cpu, gpu, kdc, Compiled, Rendered};
 use kdtrace::scene::texture::srgb_to_linear;
@@ -433,11 +435,7 @@ fn scene_files_take_an_albedo_texture() {
     let out = dir.join("elsewhere");
     std::fs::create_dir_all(&out).unwrap();
     let exported = out.join("exported.toml");
-    let export = std::process::Command::new(env!("CARGO_BIN_EXE_kdtrace"))
-        .args(["export", path.to_str().unwrap(), "--out", exported.to_str().unwrap()])
-        .output()
-        .unwrap();
-    assert!(export.status.success(), "{}", String::from_utf8_lossy(&export.stderr));
+    run::export(&path, &exported);
     let text = std::fs::read_to_string(&exported).unwrap();
     assert!(text.contains("albedo_texture = \"../textures/blue.png\""), "{text}");
     let again = load(&exported);

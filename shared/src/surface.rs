@@ -104,6 +104,19 @@ pub fn consistent(v: Variant, flat: Vec3, ns: Vec3, wi: Vec3) -> bool {
     !v.has(FEATURE_VERTEX_NORMALS) | ((dot(flat, wi) > 0.0) == (dot(ns, wi) > 0.0))
 }
 
+/// Whether `resolve` changes `m`: the variant and the scene have textures and `m` has a map
+/// other than its alpha mask.
+#[inline(always)]
+pub fn looks_up_textures(scene: &SceneView, v: Variant, m: &Material) -> bool {
+    let t = m.textures;
+    v.has(FEATURE_TEXTURES)
+        & !scene.textures.is_empty()
+        & ((t[TEXTURE_ALBEDO] != NO_TEXTURE)
+            | (t[TEXTURE_EMISSION] != NO_TEXTURE)
+            | (t[TEXTURE_ROUGHNESS] != NO_TEXTURE)
+            | (t[TEXTURE_METALLIC] != NO_TEXTURE))
+}
+
 /// `m` with its textures looked up at weights `b` on triangle `tri` (module docs); `m` itself
 /// when it has none or the variant has no textures.
 #[inline(always)]
@@ -111,33 +124,27 @@ pub fn resolve(scene: &SceneView, v: Variant, m: &Material, tri: u32, b: (f32, f
     let mut r = *m;
     // A scene without textures (an empty buffer) skips the slots: one compare per hit on the
     // CPU, whose variants all have the texture bit.
-    if v.has(FEATURE_TEXTURES) & !scene.textures.is_empty() {
+    if looks_up_textures(scene, v, m) {
         let t = m.textures;
-        let any = (t[TEXTURE_ALBEDO] != NO_TEXTURE)
-            | (t[TEXTURE_EMISSION] != NO_TEXTURE)
-            | (t[TEXTURE_ROUGHNESS] != NO_TEXTURE)
-            | (t[TEXTURE_METALLIC] != NO_TEXTURE);
-        if any {
-            let uv = uv_at(scene, tri, b);
-            if t[TEXTURE_ALBEDO] != NO_TEXTURE {
-                let c = sample(scene.textures, t[TEXTURE_ALBEDO] - 1, uv);
-                r.albedo.x = c.x;
-                r.albedo.y = c.y;
-                r.albedo.z = c.z;
-            }
-            if t[TEXTURE_EMISSION] != NO_TEXTURE {
-                let c = sample(scene.textures, t[TEXTURE_EMISSION] - 1, uv);
-                r.emission.x = c.x;
-                r.emission.y = c.y;
-                r.emission.z = c.z;
-            }
-            if t[TEXTURE_ROUGHNESS] != NO_TEXTURE {
-                let rough = sample(scene.textures, t[TEXTURE_ROUGHNESS] - 1, uv).x;
-                r.params.x = rough * rough;
-            }
-            if t[TEXTURE_METALLIC] != NO_TEXTURE {
-                r.params.z = sample(scene.textures, t[TEXTURE_METALLIC] - 1, uv).x;
-            }
+        let uv = uv_at(scene, tri, b);
+        if t[TEXTURE_ALBEDO] != NO_TEXTURE {
+            let c = sample(scene.textures, t[TEXTURE_ALBEDO] - 1, uv);
+            r.albedo.x = c.x;
+            r.albedo.y = c.y;
+            r.albedo.z = c.z;
+        }
+        if t[TEXTURE_EMISSION] != NO_TEXTURE {
+            let c = sample(scene.textures, t[TEXTURE_EMISSION] - 1, uv);
+            r.emission.x = c.x;
+            r.emission.y = c.y;
+            r.emission.z = c.z;
+        }
+        if t[TEXTURE_ROUGHNESS] != NO_TEXTURE {
+            let rough = sample(scene.textures, t[TEXTURE_ROUGHNESS] - 1, uv).x;
+            r.params.x = rough * rough;
+        }
+        if t[TEXTURE_METALLIC] != NO_TEXTURE {
+            r.params.z = sample(scene.textures, t[TEXTURE_METALLIC] - 1, uv).x;
         }
     }
     r

@@ -26,17 +26,20 @@ const ADAPTIVE_PASS_SAMPLES: u32 = 16;
 /// A monomorphised variant of the integrator: `render_samples_for::<F>`.
 pub type VariantFn = fn(&SceneView, &RenderParams, u32, u32, u32, u32, &mut Vec4, &mut Vec4, &mut u32);
 
-/// The compiled variants: every combination of the feature bits outside the materials, each
-/// for diffuse alone and for every material kind (`cpu_variant_bits`): `VARIANTS[i]` is
+/// The compiled variants: every combination of the feature bits outside the materials and the
+/// surface bits, each for diffuse alone and for every material kind, and all of those once
+/// without and once with the surface bits (`cpu_variant_bits`): `VARIANTS[i]` is
 /// `render_samples_for::<{ CANONICAL[i] }>`.
 macro_rules! variants {
     ($($bits:literal)*) => {
         #[cfg_attr(not(test), allow(dead_code))]
-        const CANONICAL: [u32; 32] = [$($bits),*];
-        static VARIANTS: [VariantFn; 32] = [$(render_samples_for::<$bits> as VariantFn),*];
+        const CANONICAL: [u32; 64] = [$($bits),*];
+        static VARIANTS: [VariantFn; 64] = [$(render_samples_for::<$bits> as VariantFn),*];
     };
 }
 variants!(
+    8 9 10 11 12 13 14 15 24 25 26 27 28 29 30 31
+    488 489 490 491 492 493 494 495 504 505 506 507 508 509 510 511
     3592 3593 3594 3595 3596 3597 3598 3599 3608 3609 3610 3611 3612 3613 3614 3615
     4072 4073 4074 4075 4076 4077 4078 4079 4088 4089 4090 4091 4092 4093 4094 4095
 );
@@ -44,11 +47,12 @@ variants!(
 /// The feature bits the CPU compiles a variant for, covering `bits`: the bits outside the
 /// materials as they are, and diffuse alone or every material kind (a monomorph per material
 /// set would multiply the variants with each kind; dispatch over the kinds present costs a
-/// compare). Textures, alpha masks and vertex normals are on in every variant: a scene without
-/// them costs a compare per hit (no texture slot, no mask, no attributes), and the count of
-/// variants (and the build time) stays as it was.
+/// compare). Textures, alpha masks and vertex normals (`SURFACE`) are all on or all off: a scene
+/// with any of them gets all three (one without the others costs a compare per hit), a scene
+/// with none gets code without their checks and copies.
 pub fn cpu_variant_bits(bits: u32) -> u32 {
-    let rest = (bits & FEATURES_ALL & !FEATURE_MATERIALS) | ALWAYS;
+    let surface = if bits & SURFACE != 0 { SURFACE } else { 0 };
+    let rest = (bits & FEATURES_ALL & !FEATURE_MATERIALS & !SURFACE) | surface;
     if bits & FEATURE_MATERIALS == FEATURE_DIFFUSE {
         rest | FEATURE_DIFFUSE
     } else {
@@ -56,15 +60,17 @@ pub fn cpu_variant_bits(bits: u32) -> u32 {
     }
 }
 
-/// The bits on in every CPU variant (`cpu_variant_bits`).
-const ALWAYS: u32 = FEATURE_TEXTURES | FEATURE_ALPHA_MASKS | FEATURE_VERTEX_NORMALS;
+/// The surface bits, on or off together in a CPU variant (`cpu_variant_bits`).
+const SURFACE: u32 = FEATURE_TEXTURES | FEATURE_ALPHA_MASKS | FEATURE_VERTEX_NORMALS;
 
 /// Where `cpu_variant_bits(bits)` sits in `VARIANTS`: bits 0–2 and `FEATURE_INDIRECT` (bit 4)
-/// count through 16, every material kind adds 16.
+/// count through 16, every material kind adds 16, the surface bits 32.
 fn variant_index(bits: u32) -> usize {
     let b = cpu_variant_bits(bits);
     let low = (b & 0b111) | ((b & FEATURE_INDIRECT) >> 1);
-    (low + if b & FEATURE_MATERIALS != FEATURE_DIFFUSE { 16 } else { 0 }) as usize
+    let kinds = if b & FEATURE_MATERIALS != FEATURE_DIFFUSE { 16 } else { 0 };
+    let surface = if b & SURFACE != 0 { 32 } else { 0 };
+    (low + kinds + surface) as usize
 }
 
 /// The CPU's variant of the integrator for feature bits `bits` (`cpu_variant_bits`).

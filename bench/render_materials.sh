@@ -2,8 +2,10 @@
 # Renders the material pictures of BENCHMARKS.md ("Materials") into bench/renders/materials.png:
 # CornellBox-Glossy, -Mirror, -Sphere and -Water from ../shared/scenes with their MTL materials,
 # and the Cornell box with a rough gold, a rough glass and a plastic tall block
-# (tests/data/cornell-{metal,materials}), 256×256 at 256 spp on the CPU, tiled 4 + 3.
-# Needs the bench venv (bench/peers.sh) for the tiling. Prints each render's time.
+# (tests/data/cornell-{metal,materials}), 256×256 at 256 spp on the CPU, tiled 4 + 3; and the
+# textured Sponza (../shared/scenes/sponza-dabrovic-mitsuba, its MTL's JPEG textures) under a
+# sky of 3 into bench/renders/sponza-textured.png. Needs the bench venv (bench/peers.sh) for the
+# tiling. Prints each render's time.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cargo build --release -q
@@ -18,6 +20,8 @@ done
 for s in cornell-metal/cornell-metal cornell-materials/cornell-glass cornell-materials/cornell-plastic; do
   $k render "tests/data/$s.toml" "${common[@]}" --out "$out/$(basename "$s").png"
 done
+$k render ../shared/scenes/sponza-dabrovic-mitsuba/sponza.obj --width 480 --height 320 --spp 64 \
+  --bounces 6 --eye=-11,3,0 --target=11,5,0 --fov 60 --environment 3,3,3 --out bench/renders/sponza-textured.png
 bench/.venv/bin/python - "$out" <<'PY'
 import sys
 import numpy as np

@@ -249,9 +249,14 @@ fn cases() -> Vec<Case> {
             &["s.toml:5:22", "no MTL material named \"wall\""],
         ),
         toml_case(
-            "rough plastic",
-            &format!("[materials.paint]\ntype = \"plastic\"\nalpha = 0.1\n{mesh}"),
-            &["s.toml:", "alpha does not apply to a plastic material", "not supported yet"],
+            "rough plastic beyond α 1",
+            &format!("[materials.paint]\ntype = \"plastic\"\nalpha = 1.5\n{mesh}"),
+            &["s.toml:3:", "roughness alpha 1.5 must be within 0..=1"],
+        ),
+        toml_case(
+            "roughplastic as a type",
+            &format!("[materials.paint]\ntype = \"roughplastic\"\n{mesh}"),
+            &["s.toml:2:", "use type = \"plastic\" with alpha"],
         ),
         toml_case(
             "unknown metal",

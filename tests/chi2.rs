@@ -29,7 +29,7 @@ use std::f64::consts::PI;
 const ALPHA: f64 = 0.01;
 /// χ² tests of correct samplers in this file (the deliberately wrong pdfs are not counted: they
 /// must fail and are not part of the family whose false-alarm rate is controlled).
-const TESTS: u64 = 36;
+const TESTS: u64 = 42;
 const MIN_EXPECTED: f64 = 5.0;
 const SAMPLES: usize = 1_000_000;
 
@@ -182,8 +182,8 @@ fn lambertian_sample_directions_follow_its_pdf_about_any_normal() {
     for (k, &n) in normals.iter().enumerate() {
         let mut worst_pdf_mismatch = 0f64;
         let mut draw = |u1: f32, u2: f32| {
-            let s = sample(Variant::GENERIC_SPEC, &m, n, n, true, u1, u2, 0.5);
-            let (f, pdf) = eval(Variant::GENERIC_SPEC, &m, n, n, s.wi, true);
+            let s = sample(Variant::GENERIC_SPEC, &m, &[], n, n, true, u1, u2, 0.5);
+            let (f, pdf) = eval(Variant::GENERIC_SPEC, &m, &[], n, n, s.wi, true);
             if s.pdf > 1e-3 {
                 worst_pdf_mismatch = worst_pdf_mismatch.max((s.pdf as f64 / pdf as f64 - 1.0).abs());
                 // weight = f·cos/pdf = albedo.
@@ -192,7 +192,7 @@ fn lambertian_sample_directions_follow_its_pdf_about_any_normal() {
             }
             s.wi
         };
-        let pdf = |w: Vec3| eval(Variant::GENERIC_SPEC, &m, n, n, w.normalize(), true).1 as f64;
+        let pdf = |w: Vec3| eval(Variant::GENERIC_SPEC, &m, &[], n, n, w.normalize(), true).1 as f64;
         let good = spherical_chi2(&mut draw, &pdf, 10 + k as u64);
         assert!(worst_pdf_mismatch < 1e-3, "normal {n:?}: sample's pdf differs from eval's by {worst_pdf_mismatch}");
         // Wrong: cos²θ·3/(2π) about the normal, normalised but too peaked.
@@ -205,7 +205,7 @@ fn lambertian_sample_directions_follow_its_pdf_about_any_normal() {
             }
         };
         let wrong = spherical_chi2(
-            &mut |u1, u2| sample(Variant::GENERIC_SPEC, &m, n, n, true, u1, u2, 0.5).wi,
+            &mut |u1, u2| sample(Variant::GENERIC_SPEC, &m, &[], n, n, true, u1, u2, 0.5).wi,
             &wrong_pdf,
             10 + k as u64,
         );
@@ -255,11 +255,11 @@ fn rough_conductor_samples_follow_its_pdf() {
             let m = gold(alpha);
             let mut worst = 0f64;
             let mut draw = |u1: f32, u2: f32| {
-                let s = sample(v, &m, n, wo, true, u1, u2, 0.5);
+                let s = sample(v, &m, &[], n, wo, true, u1, u2, 0.5);
                 if s.pdf <= 0.0 {
                     return None;
                 }
-                let (f, pdf) = eval(v, &m, n, wo, s.wi, true);
+                let (f, pdf) = eval(v, &m, &[], n, wo, s.wi, true);
                 let e1 = (s.pdf as f64 / pdf as f64 - 1.0).abs();
                 let w = f * (n.dot(s.wi) / s.pdf);
                 // Relative, but absolute below 1e-3: at grazing angles (cos ~ 1e-6) the cosine's
@@ -268,13 +268,13 @@ fn rough_conductor_samples_follow_its_pdf() {
                 worst = worst.max(e1).max(e2);
                 Some(s.wi)
             };
-            let pdf = |w: Vec3| eval(v, &m, n, wo, w.normalize(), true).1 as f64;
+            let pdf = |w: Vec3| eval(v, &m, &[], n, wo, w.normalize(), true).1 as f64;
             let good = lossy_spherical_chi2(&mut draw, &pdf, 100 + k);
             assert!(worst < 2e-3, "α {alpha}, θ {theta}: sample's pdf or weight differs from eval's by {worst}");
             let wide = gold(alpha * 1.15);
-            let wrong_pdf = |w: Vec3| eval(v, &wide, n, wo, w.normalize(), true).1 as f64;
+            let wrong_pdf = |w: Vec3| eval(v, &wide, &[], n, wo, w.normalize(), true).1 as f64;
             let wrong = lossy_spherical_chi2(
-                &mut |u1, u2| Some(sample(v, &m, n, wo, true, u1, u2, 0.5)).filter(|s| s.pdf > 0.0).map(|s| s.wi),
+                &mut |u1, u2| Some(sample(v, &m, &[], n, wo, true, u1, u2, 0.5)).filter(|s| s.pdf > 0.0).map(|s| s.wi),
                 &wrong_pdf,
                 100 + k,
             );
@@ -479,11 +479,14 @@ fn chi2_machinery_pools_small_bins_and_catches_support_and_normalisation_errors(
 /// χ² of a BSDF with a lobe choice (`material::pick`, fed by a third uniform of its own)
 /// against its pdf, and of the same draws against the pdf of `wrong`, which must be rejected.
 /// Every sample is checked against `eval`: the pdf it reports and its weight f·|cos|/pdf. Delta
-/// samples (a plastic's coating) and failed ones fall in the lost cell.
+/// samples (a plastic's coating) and failed ones fall in the lost cell. `words`: the texture
+/// buffer the materials read (a rough plastic's table).
+#[allow(clippy::too_many_arguments)]
 fn bsdf_chi2(
     name: &str,
     m: &shared::layout::Material,
     wrong: &shared::layout::Material,
+    words: &[u32],
     n: Vec3,
     wo: Vec3,
     front: bool,
@@ -493,18 +496,18 @@ fn bsdf_chi2(
     let run = |pdf_of: &shared::layout::Material, worst: &mut f64| {
         let mut u3 = Pcg64::seed_from_u64(seed ^ 0x5eed);
         let mut draw = |u1: f32, u2: f32| {
-            let s = sample(v, m, n, wo, front, u1, u2, u3.random());
+            let s = sample(v, m, words, n, wo, front, u1, u2, u3.random());
             if s.pdf <= 0.0 || s.pdf == shared::material::DELTA_PDF {
                 return None;
             }
-            let (f, pdf) = eval(v, m, n, wo, s.wi, front);
+            let (f, pdf) = eval(v, m, words, n, wo, s.wi, front);
             let e1 = (s.pdf as f64 / pdf as f64 - 1.0).abs();
             let w = f * (n.dot(s.wi).abs() / s.pdf);
             let e2 = ((w - s.weight).abs().max_element() / s.weight.max_element().max(1e-3)) as f64;
             *worst = worst.max(e1).max(e2);
             Some(s.wi)
         };
-        lossy_spherical_chi2(&mut draw, &|w: Vec3| eval(v, pdf_of, n, wo, w.normalize(), front).1 as f64, seed)
+        lossy_spherical_chi2(&mut draw, &|w: Vec3| eval(v, pdf_of, words, n, wo, w.normalize(), front).1 as f64, seed)
     };
     let mut worst = 0f64;
     let good = run(m, &mut worst);
@@ -537,6 +540,7 @@ fn rough_dielectric_samples_follow_its_pdf() {
             &format!("rough dielectric α {alpha}, θ {theta}°, front {front}"),
             &dielectric(1.5, alpha, Vec3::ZERO),
             &dielectric(1.5, alpha * 1.15, Vec3::ZERO),
+            &[],
             n,
             wo,
             front,
@@ -546,18 +550,33 @@ fn rough_dielectric_samples_follow_its_pdf() {
 }
 
 /// Plastic: the base's cosine lobe, whose share of the samples is what the coating leaves
-/// (its mirror samples are the lost cell); a plastic of another albedo (another share) is
-/// rejected.
+/// (a smooth coating's mirror samples are the lost cell), and a rough coating's GGX lobe with it,
+/// at α 0.1 and 0.4; a plastic of another albedo (another share) is rejected.
 #[test]
 fn plastic_samples_follow_its_pdf() {
-    use kdtrace::scene::plastic;
+    use kdtrace::scene::{coating::CoatingTable, plastic};
     let n = Vec3::Z;
     for (k, theta) in [0.0f32, 60.0, 80.0].into_iter().enumerate() {
         let wo = Vec3::new(theta.to_radians().sin(), 0.0, theta.to_radians().cos());
+        for (j, alpha) in [0.1f32, 0.4].into_iter().enumerate() {
+            // The table at word 0 of the texture buffer.
+            let words = CoatingTable::new(alpha, 1.5).words();
+            bsdf_chi2(
+                &format!("rough plastic α {alpha}, θ {theta}°"),
+                &plastic(Vec3::new(0.6, 0.3, 0.1), 1.5, alpha, Vec3::ZERO),
+                &plastic(Vec3::new(0.05, 0.05, 0.05), 1.5, alpha, Vec3::ZERO),
+                &words,
+                n,
+                wo,
+                true,
+                310 + 10 * k as u64 + j as u64,
+            );
+        }
         bsdf_chi2(
             &format!("plastic, θ {theta}°"),
-            &plastic(Vec3::new(0.6, 0.3, 0.1), 1.5, Vec3::ZERO),
-            &plastic(Vec3::new(0.05, 0.05, 0.05), 1.5, Vec3::ZERO),
+            &plastic(Vec3::new(0.6, 0.3, 0.1), 1.5, 0.0, Vec3::ZERO),
+            &plastic(Vec3::new(0.05, 0.05, 0.05), 1.5, 0.0, Vec3::ZERO),
+            &[],
             n,
             wo,
             true,
@@ -590,6 +609,7 @@ fn principled_samples_follow_its_pdf() {
                 ),
                 &make(metallic, roughness, transmission),
                 &make(metallic, roughness * 1.3, transmission),
+                &[],
                 n,
                 wo,
                 true,

@@ -6,7 +6,7 @@
 mod run;
 use kdtrace::{
     kdbuild::BuildSettings,
-    scene::{dielectric, plastic, principled, Principled},
+    scene::{coating::CoatingTable, dielectric, plastic, principled, Principled},
 };
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
@@ -14,7 +14,7 @@ use shared::{
     features::Variant,
     glam::Vec3,
     layout::{Material, MATERIAL_DIELECTRIC, MATERIAL_PLASTIC, MATERIAL_PRINCIPLED},
-    material::{eval, fresnel_dielectric, is_delta, sample, DELTA_PDF},
+    material::{eval, fresnel_dielectric, is_delta, rough_plastic_transmittance, sample, DELTA_PDF},
 };
 use std::f64::consts::PI;
 
@@ -29,6 +29,11 @@ fn direction(theta_deg: f32, phi_deg: f32) -> Vec3 {
 /// rule in (cos θ, φ), finer near the poles where the lobes of smooth-ish surfaces sit. The η²
 /// turns transmitted radiance into transmitted energy (`eta` = the relative index).
 fn energy_by_quadrature(m: &Material, wo: Vec3, front: bool, eta: f64) -> f64 {
+    energy_by_quadrature_in(m, &[], wo, front, eta)
+}
+
+/// `energy_by_quadrature` with the texture buffer `words` (a rough plastic's table).
+fn energy_by_quadrature_in(m: &Material, words: &[u32], wo: Vec3, front: bool, eta: f64) -> f64 {
     let (nt, np) = (3000, 1200);
     let mut sum = 0f64;
     for side in [1.0f64, -1.0] {
@@ -41,7 +46,7 @@ fn energy_by_quadrature(m: &Material, wo: Vec3, front: bool, eta: f64) -> f64 {
             for j in 0..np {
                 let phi = (j as f64 + 0.5) / np as f64 * 2.0 * PI;
                 let wi = Vec3::new((st * phi.cos()) as f32, (st * phi.sin()) as f32, (side * ct) as f32);
-                let f = eval(V, m, Vec3::Z, wo, wi, front).0.x as f64;
+                let f = eval(V, m, words, Vec3::Z, wo, wi, front).0.x as f64;
                 sum += f * ct * dct * if side < 0.0 { eta * eta } else { 1.0 };
             }
         }
@@ -51,11 +56,16 @@ fn energy_by_quadrature(m: &Material, wo: Vec3, front: bool, eta: f64) -> f64 {
 
 /// The mean sampled weight (with η² for transmission) and its standard error.
 fn energy_by_sampling(m: &Material, wo: Vec3, front: bool, eta: f64, seed: u64) -> (f64, f64) {
+    energy_by_sampling_in(m, &[], wo, front, eta, seed)
+}
+
+/// `energy_by_sampling` with the texture buffer `words` (a rough plastic's table).
+fn energy_by_sampling_in(m: &Material, words: &[u32], wo: Vec3, front: bool, eta: f64, seed: u64) -> (f64, f64) {
     let mut rng = Pcg64::seed_from_u64(seed);
     let n = 300_000;
     let (mut s1, mut s2) = (0f64, 0f64);
     for _ in 0..n {
-        let s = sample(V, m, Vec3::Z, wo, front, rng.random(), rng.random(), rng.random());
+        let s = sample(V, m, words, Vec3::Z, wo, front, rng.random(), rng.random(), rng.random());
         let w = if s.pdf > 0.0 { s.weight.x as f64 * if s.wi.z < 0.0 { eta * eta } else { 1.0 } } else { 0.0 };
         s1 += w;
         s2 += w * w;
@@ -112,15 +122,15 @@ fn rough_dielectric_is_reciprocal_and_follows_the_eta_squared_rule() {
         let a = direction(rng.random_range(0.0..85.0), rng.random_range(0.0..360.0));
         let b = direction(rng.random_range(0.0..85.0), rng.random_range(0.0..360.0));
         for front in [true, false] {
-            let (fab, fba) = (eval(V, &m, Vec3::Z, a, b, front).0.x, eval(V, &m, Vec3::Z, b, a, front).0.x);
+            let (fab, fba) = (eval(V, &m, &[], Vec3::Z, a, b, front).0.x, eval(V, &m, &[], Vec3::Z, b, a, front).0.x);
             assert!((fab - fba).abs() <= 5e-4 * fab.max(1e-3), "reflection {a:?} {b:?}: {fab} against {fba}");
         }
         // a outside (above +z), b inside (below): from inside, the shading normal is −z. Where
         // the value is tiny the microfacet is nearly grazing, F nearly 1, and 1 − F is f32
         // rounding: those pairs are left out.
         let below = Vec3::new(b.x, b.y, -b.z);
-        let into = eval(V, &m, Vec3::Z, a, below, true).0.x as f64;
-        let out = eval(V, &m, -Vec3::Z, below, a, false).0.x as f64;
+        let into = eval(V, &m, &[], Vec3::Z, a, below, true).0.x as f64;
+        let out = eval(V, &m, &[], -Vec3::Z, below, a, false).0.x as f64;
         if into > 1e-2 {
             assert!((out - 2.25 * into).abs() <= 1e-3 * out, "{a:?} {below:?}: {out} against 2.25·{into}");
             refracting += 1;
@@ -138,7 +148,7 @@ fn roughness_makes_glass_glossy() {
     let mut rng = Pcg64::seed_from_u64(4);
     let (mut up, mut down) = (0, 0);
     for _ in 0..10_000 {
-        let s = sample(V, &rough, Vec3::Z, wo, true, rng.random(), rng.random(), rng.random());
+        let s = sample(V, &rough, &[], Vec3::Z, wo, true, rng.random(), rng.random(), rng.random());
         assert!(s.pdf < DELTA_PDF);
         if s.pdf == 0.0 {
             // A microfacet reflection below the surface, or a refraction above it: no direction.
@@ -160,7 +170,7 @@ fn roughness_makes_glass_glossy() {
 /// exactly Fresnel's.
 #[test]
 fn plastic_conserves_energy_and_its_coating_reflects_by_fresnel() {
-    let white = plastic(Vec3::ONE, 1.5, Vec3::ZERO);
+    let white = plastic(Vec3::ONE, 1.5, 0.0, Vec3::ZERO);
     for (k, theta) in [0.0f32, 45.0, 80.0].into_iter().enumerate() {
         let wo = direction(theta, 10.0);
         let (mean, se) = energy_by_sampling(&white, wo, true, 1.5, 50 + k as u64);
@@ -178,7 +188,7 @@ fn plastic_conserves_energy_and_its_coating_reflects_by_fresnel() {
     let mut rng = Pcg64::seed_from_u64(3);
     let (mut mirror, n) = (0f64, 200_000);
     for _ in 0..n {
-        let s = sample(V, &white, Vec3::Z, wo, true, rng.random(), rng.random(), rng.random());
+        let s = sample(V, &white, &[], Vec3::Z, wo, true, rng.random(), rng.random(), rng.random());
         if s.pdf == DELTA_PDF {
             assert!((s.wi - Vec3::new(-wo.x, -wo.y, wo.z)).abs().max_element() < 1e-6);
             mirror += s.weight.x as f64;
@@ -186,6 +196,103 @@ fn plastic_conserves_energy_and_its_coating_reflects_by_fresnel() {
     }
     let f = fresnel_dielectric(wo.z, 1.5).0 as f64;
     assert!((mirror / n as f64 - f).abs() < 0.02 * f, "mirror energy {} against F {f}", mirror / n as f64);
+}
+
+/// The rough plastic (Mitsuba's `roughplastic`): a white base under a rough coating returns at
+/// most 1 (up to what the single-scattering coating and the table's quadratures leave), and its
+/// samples match the quadrature of f·cos.
+#[test]
+fn rough_plastic_conserves_energy_and_its_samples_know_it() {
+    let mut seed = 90;
+    // The single-scattering coating loses what its microfacets shadow, more the rougher it is
+    // (Mitsuba's model: its internal reflectance drops with the shadowed part of its total
+    // internal reflection, and the base's factor 1/(η²(1 − R_int)) with it).
+    for (alpha, least) in [(0.1f32, 0.85), (0.4, 0.5)] {
+        let white = plastic(Vec3::ONE, 1.5, alpha, Vec3::ZERO);
+        let words = CoatingTable::new(alpha, 1.5).words();
+        for theta in [0.0f32, 45.0, 80.0] {
+            let wo = direction(theta, 10.0);
+            let (mean, se) = energy_by_sampling_in(&white, &words, wo, true, 1.5, seed);
+            seed += 1;
+            let quad = energy_by_quadrature_in(&white, &words, wo, true, 1.5);
+            eprintln!("rough plastic α {alpha}, θ {theta}°: sampled {mean:.5} ± {se:.5}, quadrature {quad:.5}");
+            assert!(mean <= 1.01 + 4.0 * se && quad <= 1.01, "α {alpha}, θ {theta}: energy created");
+            assert!((mean - quad).abs() < 4.0 * se + 5e-3, "α {alpha}, θ {theta}: {mean} against {quad}");
+            assert!(quad > least, "α {alpha}, θ {theta}: a white rough plastic returns only {quad}");
+        }
+    }
+}
+
+/// The rough coating's table: t(1) is 1 − F(0°) for a nearly smooth coating, t stays within
+/// (0, 1] and grows with μ (but for a dip of under 1% at the grazing end, where the visible
+/// normals of Mitsuba's single-scattering model turn toward the direction); the shader's lookup returns the table's points and interpolates
+/// between them; the internal reflectance matches a brute-force quadrature of the microfacet
+/// reflection over the sphere at the same cosines.
+#[test]
+fn rough_plastic_table_is_the_interface_transmittance() {
+    let smooth = CoatingTable::new(0.01, 1.5);
+    let f0 = fresnel_dielectric(1.0, 1.5).0 as f64;
+    let t1 = *smooth.transmittance.last().unwrap();
+    assert!((t1 - (1.0 - f0)).abs() < 1e-3, "t(1) = {t1} against 1 − F = {}", 1.0 - f0);
+    for alpha in [0.1f32, 0.2, 0.5] {
+        let table = CoatingTable::new(alpha, 1.5);
+        let t = &table.transmittance;
+        assert!(t.iter().skip(1).all(|&v| v > 0.0 && v <= 1.0), "α {alpha}: {t:?}");
+        assert!(t[3..].windows(2).all(|w| w[1] >= w[0]), "α {alpha}: not monotone: {t:?}");
+        assert!(t[..4].iter().all(|&v| v >= 0.99 * t[0]), "α {alpha}: grazing dip: {t:?}");
+        // The lookup, at the points and halfway.
+        let words = table.words();
+        for k in 0..63 {
+            let mu = k as f32 / 63.0;
+            let at = rough_plastic_transmittance(&words, 0, mu);
+            assert!((at as f64 - t[k]).abs() < 1e-6, "α {alpha}: t({mu}) = {at} against {}", t[k]);
+            let mid = rough_plastic_transmittance(&words, 0, (k as f32 + 0.5) / 63.0) as f64;
+            assert!((mid - 0.5 * (t[k] + t[k + 1])).abs() < 1e-6, "α {alpha}, k {k}: {mid}");
+        }
+        // Brute force: R(μ) = ∫ F(i·h, 1/η)·D(h)·G1(o)G1(i)/(4 μ) dω_i by the midpoint rule.
+        let a2 = alpha as f64 * alpha as f64;
+        let g1 = |z: f64| 2.0 / (1.0 + (1.0 + a2 * (1.0 - z * z) / (z * z)).sqrt());
+        let fresnel = |c: f64| {
+            let eta = 1.0 / 1.5f64;
+            let st2 = (1.0 - c * c) / (eta * eta);
+            if st2 >= 1.0 {
+                return 1.0;
+            }
+            let ct = (1.0 - st2).sqrt();
+            let rs = (c - eta * ct) / (c + eta * ct);
+            let rp = (eta * c - ct) / (eta * c + ct);
+            0.5 * (rs * rs + rp * rp)
+        };
+        let reflectance = |mu: f64| {
+            let o = [(1.0 - mu * mu).sqrt(), 0.0, mu];
+            let (nt, np) = (1500, 600);
+            let mut sum = 0.0;
+            for i in 0..nt {
+                let s = (i as f64 + 0.5) / nt as f64;
+                let ct = 1.0 - s * s;
+                let dct = 2.0 * s / nt as f64;
+                let st = (1.0 - ct * ct).max(0.0).sqrt();
+                for j in 0..np {
+                    let phi = (j as f64 + 0.5) / np as f64 * 2.0 * PI;
+                    let wi = [st * phi.cos(), st * phi.sin(), ct];
+                    let h = [o[0] + wi[0], o[1] + wi[1], o[2] + wi[2]];
+                    let l = (h[0] * h[0] + h[1] * h[1] + h[2] * h[2]).sqrt();
+                    let h = [h[0] / l, h[1] / l, h[2] / l];
+                    let t = a2 * h[2] * h[2] + h[0] * h[0] + h[1] * h[1];
+                    let d = a2 / (PI * t * t);
+                    let c = o[0] * h[0] + o[1] * h[1] + o[2] * h[2];
+                    // f·cos θ_i = F·D·G1(o)·G1(i) / (4 μ).
+                    sum += fresnel(c) * d * g1(mu) * g1(ct) / (4.0 * mu) * dct;
+                }
+            }
+            sum * 2.0 * PI / np as f64
+        };
+        let mus = kdtrace::scene::coating::table_cosines();
+        let brute = 2.0 * mus.iter().skip(1).map(|&mu| reflectance(mu) * mu).sum::<f64>() / mus.len() as f64;
+        let r = table.internal_reflectance;
+        eprintln!("α {alpha}: internal reflectance {r:.5}, brute force {brute:.5}; t(1) {:.5}", t[63]);
+        assert!((r - brute).abs() < 4e-3, "α {alpha}: internal reflectance {r} against {brute}");
+    }
 }
 
 fn gltf(base: Vec3, metallic: f32, roughness: f32, transmission: f32) -> Material {

@@ -28,6 +28,8 @@ fn assert_same(a: &Compiled, b: &Compiled) {
     assert_eq!(a.scene.info, b.scene.info);
     assert_eq!(bits(bytemuck::cast_slice(&a.scene.materials)), bits(bytemuck::cast_slice(&b.scene.materials)));
     assert_eq!(a.scene.material_names, b.scene.material_names);
+    // Textures, then the rough plastics' coating tables.
+    assert_eq!(a.scene.textures, b.scene.textures);
     assert_eq!(bits(bytemuck::cast_slice(&a.scene.lights)), bits(bytemuck::cast_slice(&b.scene.lights)));
     assert_eq!(a.lights, b.lights);
     assert_eq!(
@@ -91,8 +93,15 @@ fn written_scenes_read_back_bit_for_bit() {
         "scenes/cornell-box.toml",
         "tests/data/meshes/CornellBox-Sphere/CornellBox-Sphere.obj",
         "tests/data/meshes/bunny-npm/bunny.obj",
+        "tests/data/cornell-materials/cornell-roughplastic.toml",
     ] {
         let loaded = kdtrace::load(&repo(rel), BuildSettings::default()).unwrap();
+        if rel.contains("roughplastic") {
+            // The coating's table travels in the texture section.
+            let rough = loaded.compiled.scene.materials.iter().find(|m| m.params.x > 0.0).unwrap();
+            let words = shared::material::ROUGH_PLASTIC_TABLE_WORDS as usize;
+            assert_eq!(loaded.compiled.scene.textures.len(), rough.table as usize + words);
+        }
         let path = tmp(&format!("{}.kdc", Path::new(rel).file_stem().unwrap().to_string_lossy()));
         let build = BuildSettings { leaf_size: 3, ..BuildSettings::default() };
         kdc::write(&path, &loaded.compiled, &build, &loaded.settings).unwrap();

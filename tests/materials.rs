@@ -84,7 +84,7 @@ fn rough_conductor_is_reciprocal() {
     for _ in 0..10_000 {
         let a = direction(rng.random_range(0.0..89.0), rng.random_range(0.0..360.0));
         let b = direction(rng.random_range(0.0..89.0), rng.random_range(0.0..360.0));
-        let (fab, fba) = (eval(V, &m, Vec3::Z, a, b, true).0, eval(V, &m, Vec3::Z, b, a, true).0);
+        let (fab, fba) = (eval(V, &m, &[], Vec3::Z, a, b, true).0, eval(V, &m, &[], Vec3::Z, b, a, true).0);
         let scale = fab.max_element().max(1e-3);
         assert!((fab - fba).abs().max_element() < 1e-4 * scale, "{a:?} {b:?}: {fab:?} against {fba:?}");
     }
@@ -100,7 +100,7 @@ fn albedo_by_quadrature(m: &shared::layout::Material, wo: Vec3) -> f64 {
         for j in 0..np {
             let phi = (j as f64 + 0.5) / np as f64 * 2.0 * PI;
             let wi = Vec3::new((st * phi.cos()) as f32, (st * phi.sin()) as f32, ct as f32);
-            sum += eval(V, m, Vec3::Z, wo, wi, true).0.x as f64 * ct;
+            sum += eval(V, m, &[], Vec3::Z, wo, wi, true).0.x as f64 * ct;
         }
     }
     sum * 2.0 * PI / (nt * np) as f64
@@ -120,7 +120,7 @@ fn rough_conductor_conserves_energy_and_its_samples_know_it() {
             let n = 400_000;
             let (mut s1, mut s2) = (0f64, 0f64);
             for _ in 0..n {
-                let s = sample(V, &m, Vec3::Z, wo, true, rng.random(), rng.random(), 0.5);
+                let s = sample(V, &m, &[], Vec3::Z, wo, true, rng.random(), rng.random(), 0.5);
                 let w = if s.pdf > 0.0 { s.weight.x as f64 } else { 0.0 };
                 s1 += w;
                 s2 += w * w;
@@ -151,14 +151,14 @@ fn smooth_conductor_is_a_mirror() {
     assert!(is_delta(V, &m));
     assert!(!is_delta(V, &gold(0.2)));
     let wo = direction(40.0, 75.0);
-    let s = sample(V, &m, Vec3::Z, wo, true, 0.3, 0.7, 0.5);
+    let s = sample(V, &m, &[], Vec3::Z, wo, true, 0.3, 0.7, 0.5);
     let mirror = Vec3::new(-wo.x, -wo.y, wo.z);
     assert!((s.wi - mirror).abs().max_element() < 1e-6, "{:?}", s.wi);
     assert_eq!(s.pdf, DELTA_PDF);
     let f = fresnel_conductor(wo.z, Vec3::new(0.143, 0.375, 1.442), Vec3::new(3.983, 2.386, 1.603));
     assert!((s.weight - f).abs().max_element() < 1e-6);
     // A delta lobe has nothing to evaluate.
-    assert_eq!(eval(V, &m, Vec3::Z, wo, mirror, true), (Vec3::ZERO, 0.0));
+    assert_eq!(eval(V, &m, &[], Vec3::Z, wo, mirror, true), (Vec3::ZERO, 0.0));
 }
 
 /// A closed box of perfect mirrors (Fresnel 1) that emit 1 everywhere, rendered without Russian
@@ -260,7 +260,7 @@ fn smooth_dielectric_reflects_and_refracts_by_fresnel_and_snell() {
         let n = 200_000;
         let mut reflected = 0;
         for _ in 0..n {
-            let s = sample(V, &glass, Vec3::Z, wo, front, rng.random(), rng.random(), 0.5);
+            let s = sample(V, &glass, &[], Vec3::Z, wo, front, rng.random(), rng.random(), 0.5);
             assert_eq!(s.pdf, DELTA_PDF);
             if s.wi.z > 0.0 {
                 reflected += 1;

@@ -226,6 +226,13 @@ fn plastic_matches_mitsuba_per_pixel() {
     block_matches_mitsuba("plastic", 1);
 }
 
+/// Rough plastic against Mitsuba's `roughplastic` (GGX α 0.2, index 1.5, `nonlinear = false`),
+/// pixel by pixel.
+#[test]
+fn rough_plastic_matches_mitsuba_per_pixel() {
+    block_matches_mitsuba("roughplastic", 1);
+}
+
 /// Rough glass against Mitsuba's `roughdielectric` (GGX α 0.2, index 1.5), on 8×8 blocks: light
 /// focused through the glass (caustics) makes single pixels' estimates heavy-tailed, and their
 /// standard errors from 16 seeds (and the reference's from 16 chunks) too small. Measured: with

@@ -198,7 +198,7 @@ fn every_variant_renders_the_generic_image() {
         ),
         (
             "plastic",
-            block_of(plastic(Vec3::new(0.7, 0.2, 0.1), 1.5, Vec3::ZERO), None),
+            block_of(plastic(Vec3::new(0.7, 0.2, 0.1), 1.5, 0.0, Vec3::ZERO), None),
             settings(outside.0, outside.1, 0.0, 3),
             FEATURE_EMITTERS | FEATURE_DIFFUSE | FEATURE_PLASTIC | FEATURE_INDIRECT,
         ),
@@ -207,6 +207,12 @@ fn every_variant_renders_the_generic_image() {
             block_of(gltf(0.9, 0.0, 0.2, 1.0), Some(gltf(0.8, 1.0, 0.4, 0.0))),
             settings(outside.0, outside.1, 0.3, 4),
             FEATURE_EMITTERS | FEATURE_ENVIRONMENT | FEATURE_DIFFUSE | FEATURE_PRINCIPLED | FEATURE_INDIRECT,
+        ),
+        (
+            "rough plastic",
+            block_of(plastic(Vec3::new(0.7, 0.2, 0.1), 1.5, 0.25, Vec3::ZERO), None),
+            settings(outside.0, outside.1, 0.3, 4),
+            FEATURE_EMITTERS | FEATURE_ENVIRONMENT | FEATURE_DIFFUSE | FEATURE_PLASTIC | FEATURE_INDIRECT,
         ),
     ];
     // Every bit is left out somewhere.

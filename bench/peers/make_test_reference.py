@@ -6,7 +6,8 @@ tests/data/cornell-materials/cornell-glass-mitsuba-32.exr: the tall block a roug
 `roughdielectric` GGX α 0.2, int_ior 1.5, ext_ior 1 (`smooth-glass`: `dielectric`, the same
 indices, into cornell-smooth-glass-mitsuba-32.exr); with `plastic`,
 tests/data/cornell-materials/cornell-plastic-mitsuba-32.exr: the tall block `plastic` with
-diffuse_reflectance (0.7, 0.25, 0.1), int_ior 1.5, ext_ior 1, nonlinear false, two-sided); with `textured`,
+diffuse_reflectance (0.7, 0.25, 0.1), int_ior 1.5, ext_ior 1, nonlinear false, two-sided; with
+`roughplastic`, cornell-roughplastic-mitsuba-32.exr: the same under `roughplastic`, GGX α 0.2); with `textured`,
 tests/data/cornell-textured/cornell-textured-mitsuba-32.exr: the box with a 4x4-texel sRGB poster
 on its back wall, Mitsuba's `bitmap` with bilinear filtering and repeat wrapping, raw = false).
 
@@ -79,8 +80,8 @@ def poster(d, tmp, folder):
 def main():
     mi.set_variant("llvm_ad_rgb")
     mode = sys.argv[1] if len(sys.argv) > 1 else "box"
-    if mode not in ("box", "metal", "glass", "smooth-glass", "plastic", "textured"):
-        sys.exit(f"unknown mode {mode!r}: box, metal, glass, smooth-glass, plastic or textured")
+    if mode not in ("box", "metal", "glass", "smooth-glass", "plastic", "roughplastic", "textured"):
+        sys.exit(f"unknown mode {mode!r}: box, metal, glass, smooth-glass, plastic, roughplastic or textured")
     box = os.path.join(ROOT, "scenes", "cornell-box.obj")
     block = os.path.join(ROOT, "tests", "data", "cornell-metal", "cornell-metal.obj")
     textured_folder = os.path.join(ROOT, "tests", "data", "cornell-textured")
@@ -97,6 +98,11 @@ def main():
         bsdfs["gold"] = {"type": "dielectric", "int_ior": 1.5, "ext_ior": 1.0}
     elif mode == "plastic":
         plastic = {"type": "plastic", "diffuse_reflectance": {"type": "rgb", "value": [0.7, 0.25, 0.1]},
+                   "int_ior": 1.5, "ext_ior": 1.0, "nonlinear": False}
+        bsdfs["gold"] = {"type": "twosided", "material": plastic}
+    elif mode == "roughplastic":
+        plastic = {"type": "roughplastic", "distribution": "ggx", "alpha": 0.2,
+                   "diffuse_reflectance": {"type": "rgb", "value": [0.7, 0.25, 0.1]},
                    "int_ior": 1.5, "ext_ior": 1.0, "nonlinear": False}
         bsdfs["gold"] = {"type": "twosided", "material": plastic}
     args = SimpleNamespace(
@@ -122,6 +128,7 @@ def main():
         "glass": (os.path.join(ROOT, "tests", "data", "cornell-materials"), "cornell-glass-mitsuba-32"),
         "smooth-glass": (os.path.join(ROOT, "tests", "data", "cornell-materials"), "cornell-smooth-glass-mitsuba-32"),
         "plastic": (os.path.join(ROOT, "tests", "data", "cornell-materials"), "cornell-plastic-mitsuba-32"),
+        "roughplastic": (os.path.join(ROOT, "tests", "data", "cornell-materials"), "cornell-roughplastic-mitsuba-32"),
         "textured": (textured_folder, "cornell-textured-mitsuba-32"),
     }[mode]
     os.makedirs(out, exist_ok=True)

@@ -204,7 +204,7 @@ fn shade_vertex(
         let dist2 = length_squared(to_light);
         let wi = to_light * (1.0 / dist2.sqrt());
         let cos_l = -dot(nl, wi);
-        let (f, pdf_bsdf) = eval(v, mat, ns, wo, wi, front);
+        let (f, pdf_bsdf) = eval(v, mat, scene.textures, ns, wo, wi, front);
         if (cos_l > 0.0) & (pdf_bsdf > 0.0) & (dist2 > 0.0) & consistent(v, nf, ns, wi) {
             let light_pdf = light.pmf * dist2 / (cos_l * light.area);
             let target = offset_ray_origin(q, on_light.error, nl);
@@ -223,7 +223,7 @@ fn shade_vertex(
 
     // The lobe pick's uniform, drawn only for a material that has a choice.
     let u_pick = if picks_lobe(v, mat) { rng.independent_after() } else { 0.0 };
-    let bs = sample_bsdf(v, mat, ns, wo, front, ub1, ub2, u_pick);
+    let bs = sample_bsdf(v, mat, scene.textures, ns, wo, front, ub1, ub2, u_pick);
     if (bs.pdf <= 0.0) | !consistent(v, nf, ns, bs.wi) {
         return false;
     }

@@ -83,8 +83,10 @@ pub const MATERIAL_CONDUCTOR: u32 = 1;
 /// A dielectric of index of refraction `params.y` inside (the counter-clockwise side is outside,
 /// index 1), smooth or rough (GGX α `params.x`).
 pub const MATERIAL_DIELECTRIC: u32 = 2;
-/// Plastic: a diffuse base `albedo` under a smooth dielectric coating of index `params.y`
-/// (`params.z`, `params.w`: the base's constant factors, `material::plastic_scale`).
+/// Plastic: a diffuse base `albedo` under a dielectric coating of index `params.y`, smooth
+/// (`params.x` = 0) or rough (GGX α `params.x`, with the coating's transmittance table at
+/// `table`); `params.z`, `params.w`: the base's constant factors (`material::plastic_scale`, or
+/// the host's from the table for a rough coating).
 pub const MATERIAL_PLASTIC: u32 = 3;
 /// The glTF metallic-roughness model: base colour `albedo`, `params` = (GGX α, index of
 /// refraction, metallic, transmission).
@@ -95,7 +97,11 @@ pub const MATERIAL_PRINCIPLED: u32 = 4;
 #[cfg_attr(not(target_arch = "spirv"), derive(bytemuck::Pod, bytemuck::Zeroable))]
 pub struct Material {
     pub kind: u32,
-    pub _pad: [u32; 3],
+    /// A rough plastic's coating table (`material::rough_plastic_transmittance`): its first word
+    /// in the texture buffer (`binding::TEXTURES`), after the textures; 0 for every other
+    /// material.
+    pub table: u32,
+    pub _pad: [u32; 2],
     /// Diffuse albedo (MTL `Kd`), linear RGB in `xyz`.
     pub albedo: Vec4,
     /// Emitted radiance from the front (counter-clockwise) side (MTL `Ke`), linear RGB in `xyz`.
@@ -359,7 +365,8 @@ pub mod binding {
     pub const LIVE: u32 = 14;
     /// Per-triangle vertex normals and texture coordinates (`TriangleAttributes`, read-only).
     pub const ATTRIBUTES: u32 = 15;
-    /// The texture table and texels (`texture`, read-only).
+    /// The texture table and texels (`texture`), then the rough plastics' coating tables
+    /// (`Material::table`), read-only.
     pub const TEXTURES: u32 = 16;
     /// Bindings in all: the uniform parameters, then storage buffers.
     pub const COUNT: u32 = 17;

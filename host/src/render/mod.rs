@@ -45,6 +45,8 @@ pub struct Compiled {
 
 impl Compiled {
     pub fn new(mut scene: Scene, mut tree: KdTree) -> Self {
+        // A rough plastic's coating table, also for a material changed after loading.
+        scene.refresh_coating_tables();
         // Shading reads each triangle's unit normal from its `w` components.
         scene.triangles.par_iter_mut().for_each(|t| *t = t.with_unit_normal());
         // A tree from a .kdc file of an older layout, or built elsewhere, gets the block layout

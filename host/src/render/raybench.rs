@@ -72,6 +72,7 @@ pub fn make_rays(c: &Compiled, s: &RenderSettings, kind: RayKind, traversal: Tra
             let wi = sample_bsdf(
                 Variant::GENERIC_SPEC,
                 &c.scene.materials[c.scene.info[hit.triangle as usize].material as usize],
+                &c.scene.textures,
                 n,
                 -d.normalize(),
                 true,

@@ -102,7 +102,8 @@ pub struct MaterialSection {
     pub eta: Option<Color>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub k: Option<Color>,
-    /// Conductor, dielectric: GGX roughness α as Mitsuba's `alpha` (0 or absent: smooth).
+    /// Conductor, dielectric, plastic (its coating): GGX roughness α as Mitsuba's `alpha` (0 or
+    /// absent: smooth).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub alpha: Option<Alpha>,
     /// Dielectric, plastic coating, principled: the index of refraction inside (outside 1);
@@ -154,7 +155,7 @@ impl MaterialKind {
             MaterialKind::Diffuse => &["albedo", "albedo_texture"],
             MaterialKind::Conductor => &["metal", "eta", "k", "alpha"],
             MaterialKind::Dielectric => &["ior", "alpha"],
-            MaterialKind::Plastic => &["albedo", "albedo_texture", "ior"],
+            MaterialKind::Plastic => &["albedo", "albedo_texture", "ior", "alpha"],
             MaterialKind::Principled => {
                 &["base_color", "base_color_texture", "metallic", "roughness", "transmission", "ior"]
             }
@@ -182,9 +183,6 @@ impl TryFrom<RawMaterial> for MaterialSection {
         let allowed = r.kind.keys();
         if let Some((key, _)) = given.iter().find(|(key, on)| *on && !allowed.contains(key)) {
             let hint = match *key {
-                "alpha" if r.kind == MaterialKind::Plastic => {
-                    "; a rough plastic coating is not supported yet (use type = \"principled\" with roughness)"
-                }
                 "alpha" if r.kind == MaterialKind::Principled => {
                     "; a principled material takes roughness (α = roughness²)"
                 }
@@ -565,7 +563,7 @@ impl TryFrom<String> for MaterialKind {
             "principled" => Ok(MaterialKind::Principled),
             "roughconductor" => Err("use type = \"conductor\" with alpha for a rough conductor".into()),
             "roughdielectric" => Err("use type = \"dielectric\" with alpha for a rough dielectric".into()),
-            "roughplastic" => Err("a rough plastic coating is not supported yet; type = \"plastic\" is smooth".into()),
+            "roughplastic" => Err("use type = \"plastic\" with alpha for a rough plastic coating".into()),
             other => Err(format!(
                 "unknown material type {other:?} (expected \"diffuse\", \"conductor\", \"dielectric\", \"plastic\" or \"principled\")"
             )),
@@ -665,6 +663,7 @@ fn scene_material(m: &MaterialSection) -> Material {
         MaterialKind::Plastic => plastic(
             m.albedo.map_or(Vec3::splat(DEFAULT_ALBEDO), |a| vec3_of(a.0)),
             m.ior.map_or(DEFAULT_IOR, |i| i.0 as f32),
+            m.alpha.map_or(0.0, |a| a.0 as f32),
             emission,
         ),
         MaterialKind::Principled => principled(

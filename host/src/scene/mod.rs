@@ -5,6 +5,7 @@
 //! devices read them), their materials and the light table; and the world-space scene it is made
 //! from, kept in f64 until it is placed (`WorldScene`). Vertex attributes (`WorldAttributes`:
 //! vertex normals and texture coordinates) and textures (`texture`) travel with the triangles.
+pub mod coating;
 pub mod file;
 pub mod local_frame;
 pub mod obj;
@@ -36,7 +37,8 @@ pub struct Scene {
     /// Per triangle its vertex normals and texture coordinates, or empty when no triangle has
     /// any (`shared::layout::TriangleAttributes`).
     pub attributes: Vec<TriangleAttributes>,
-    /// The texture buffer (`shared::texture`; empty without textures) and each texture's image
+    /// The texture buffer (`shared::texture`; empty without textures or rough plastics), then
+    /// the rough plastics' coating tables (`coating::append_tables`); and each texture's image
     /// file, in table order.
     pub textures: Vec<u32>,
     pub texture_sources: Vec<String>,
@@ -115,7 +117,8 @@ impl WorldScene {
 pub fn diffuse(albedo: Vec3, emission: Vec3) -> Material {
     Material {
         kind: MATERIAL_DIFFUSE,
-        _pad: [0; 3],
+        table: 0,
+        _pad: [0; 2],
         albedo: albedo.extend(0.0),
         emission: emission.extend(0.0),
         params: Vec4::ZERO,
@@ -141,10 +144,15 @@ pub fn dielectric(ior: f32, alpha: f32, emission: Vec3) -> Material {
     Material { kind: MATERIAL_DIELECTRIC, params: Vec4::new(alpha, ior, 0.0, 0.0), ..diffuse(Vec3::ZERO, emission) }
 }
 
-/// Plastic: a diffuse base of reflectance `albedo` under a smooth coating of index `ior`.
-pub fn plastic(albedo: Vec3, ior: f32, emission: Vec3) -> Material {
-    let (over_pi, scale) = shared::material::plastic_scale(ior);
-    Material { kind: MATERIAL_PLASTIC, params: Vec4::new(0.0, ior, over_pi, scale), ..diffuse(albedo, emission) }
+/// Plastic: a diffuse base of reflectance `albedo` under a coating of index `ior`, smooth
+/// (`alpha` = 0) or rough of GGX α `alpha` (Mitsuba's `roughplastic`; `coating`).
+pub fn plastic(albedo: Vec3, ior: f32, alpha: f32, emission: Vec3) -> Material {
+    let (over_pi, scale) = if alpha > 0.0 {
+        coating::CoatingTable::new(alpha, ior).scale(ior)
+    } else {
+        shared::material::plastic_scale(ior)
+    };
+    Material { kind: MATERIAL_PLASTIC, params: Vec4::new(alpha, ior, over_pi, scale), ..diffuse(albedo, emission) }
 }
 
 /// The parameters of a glTF metallic-roughness material (`shared::material::principled`).
@@ -260,7 +268,7 @@ impl Scene {
             lo = Vec3::ZERO;
             hi = Vec3::ZERO;
         }
-        Ok(Self {
+        let mut scene = Self {
             triangles: kept,
             info,
             materials,
@@ -272,6 +280,18 @@ impl Scene {
             attributes: kept_attributes,
             textures: if textures.is_empty() { Vec::new() } else { texture::pack(textures)? },
             texture_sources: textures.iter().map(|t| t.source.display().to_string()).collect(),
-        })
+        };
+        scene.refresh_coating_tables();
+        Ok(scene)
+    }
+
+    /// Puts the coating tables of the rough plastics among `materials` after the textures in
+    /// the texture buffer, replacing any there were (`coating::append_tables`); deterministic,
+    /// so a scene read from a .kdc file gets the same tables again. `render::Compiled::new` calls
+    /// it, so a material changed after loading gets its table.
+    pub fn refresh_coating_tables(&mut self) {
+        let kept = texture::packed_len(&self.textures, self.texture_sources.len());
+        self.textures.truncate(kept);
+        coating::append_tables(&mut self.materials, &mut self.textures);
     }
 }

@@ -124,6 +124,18 @@ pub fn pack(textures: &[Texture]) -> Result<Vec<u32>> {
 
 /// Checks a texture buffer of `count` textures (from a `.kdc` file): every table entry's texels
 /// lie within the buffer after the table. What `shared::texture` may then index safely.
+/// Words of a texture buffer that its `count` textures take (table and texels; what follows
+/// is the rough plastics' coating tables, `coating`). The buffer must have passed `check_packed`.
+pub fn packed_len(words: &[u32], count: usize) -> usize {
+    (0..count)
+        .map(|i| {
+            let [offset, width, height, flags] = [0, 1, 2, 3].map(|k| words[i * 4 + k] as usize);
+            let texels = width * height;
+            offset + if flags & TEXTURE_ONE_CHANNEL as usize != 0 { texels.div_ceil(2) } else { 2 * texels }
+        })
+        .fold(count * INFO_WORDS as usize, usize::max)
+}
+
 pub fn check_packed(words: &[u32], count: usize) -> Result<()> {
     let table = count.checked_mul(INFO_WORDS as usize).ok_or_else(|| anyhow!("texture count overflows"))?;
     if table > words.len() {

@@ -22,7 +22,10 @@ pub use conductor::{fresnel_conductor, CONDUCTOR_PRESETS};
 pub use dielectric::{fresnel_dielectric, refract};
 pub use frame::Frame;
 pub use microfacet::{ggx_d, ggx_g1, ggx_g1_two_sided, ggx_sample_visible, ggx_visible_pdf};
-pub use plastic::{fresnel_diffuse_reflectance, plastic_scale};
+pub use plastic::{
+    fresnel_diffuse_reflectance, plastic_scale, rough_plastic_transmittance, ROUGH_PLASTIC_TABLE_RES,
+    ROUGH_PLASTIC_TABLE_WORDS,
+};
 pub use principled::PRINCIPLED_MIN_ALPHA;
 
 use crate::features::{
@@ -59,9 +62,11 @@ fn is(v: Variant, m: &Material, kind: u32, bit: u32) -> bool {
     v.only_material(bit) | (v.has(bit) & (m.kind == kind))
 }
 
-/// BSDF value f(wo, wi) (without the cosine) and the pdf of `sample` choosing `wi`.
+/// BSDF value f(wo, wi) (without the cosine) and the pdf of `sample` choosing `wi`. `words`:
+/// the texture buffer (`SceneView::textures`), where a rough plastic's table lives.
 #[inline]
-pub fn eval(v: Variant, m: &Material, n: Vec3, wo: Vec3, wi: Vec3, front: bool) -> (Vec3, f32) {
+#[allow(clippy::too_many_arguments)]
+pub fn eval(v: Variant, m: &Material, words: &[u32], n: Vec3, wo: Vec3, wi: Vec3, front: bool) -> (Vec3, f32) {
     if is(v, m, MATERIAL_DIFFUSE, FEATURE_DIFFUSE) {
         return diffuse::eval(m, n, wi);
     }
@@ -72,7 +77,7 @@ pub fn eval(v: Variant, m: &Material, n: Vec3, wo: Vec3, wi: Vec3, front: bool) 
         return dielectric::eval(m, n, wo, wi, front);
     }
     if is(v, m, MATERIAL_PLASTIC, FEATURE_PLASTIC) {
-        return plastic::eval(m, n, wo, wi);
+        return plastic::eval(m, words, n, wo, wi);
     }
     if is(v, m, MATERIAL_PRINCIPLED, FEATURE_PRINCIPLED) {
         return principled::eval(m, n, wo, wi, front);
@@ -82,11 +87,21 @@ pub fn eval(v: Variant, m: &Material, n: Vec3, wo: Vec3, wi: Vec3, front: bool) 
 
 /// Samples `wi` for outgoing direction `wo` from uniforms `u1`, `u2` (the direction) and `u3`
 /// (the lobe, where there is a choice); `front`: the ray arrived on the counter-clockwise
-/// (outside) side, which a dielectric needs to know which medium is which. `u3` must be
+/// (outside) side, which a dielectric needs to know which medium is which; `words`: as for `eval`. `u3` must be
 /// independent of `u1`, `u2` (`rng::Sampler::independent_after`) where `picks_lobe`.
 #[inline]
 #[allow(clippy::too_many_arguments)]
-pub fn sample(v: Variant, m: &Material, n: Vec3, wo: Vec3, front: bool, u1: f32, u2: f32, u3: f32) -> BsdfSample {
+pub fn sample(
+    v: Variant,
+    m: &Material,
+    words: &[u32],
+    n: Vec3,
+    wo: Vec3,
+    front: bool,
+    u1: f32,
+    u2: f32,
+    u3: f32,
+) -> BsdfSample {
     if is(v, m, MATERIAL_DIFFUSE, FEATURE_DIFFUSE) {
         return diffuse::sample(m, n, u1, u2);
     }
@@ -97,7 +112,7 @@ pub fn sample(v: Variant, m: &Material, n: Vec3, wo: Vec3, front: bool, u1: f32,
         return dielectric::sample(m, n, wo, front, u1, u2, u3);
     }
     if is(v, m, MATERIAL_PLASTIC, FEATURE_PLASTIC) {
-        return plastic::sample(m, n, wo, u1, u2, u3);
+        return plastic::sample(m, words, n, wo, u1, u2, u3);
     }
     if is(v, m, MATERIAL_PRINCIPLED, FEATURE_PRINCIPLED) {
         return principled::sample(m, n, wo, front, u1, u2, u3);

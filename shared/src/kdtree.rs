@@ -173,7 +173,7 @@ pub(crate) fn ray_start(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32) 
 /// GPU thread would execute the lanes one after another, so it tests the leaf's triangles one by one
 /// (`test_leaf_each`). Both return the same hit and the same counts (tested against each other).
 #[inline]
-pub(crate) fn test_leaf(
+pub(crate) fn test_leaf<const MASKS: bool>(
     scene: &SceneView,
     shear: &RayShear,
     n: KdNode,
@@ -184,7 +184,7 @@ pub(crate) fn test_leaf(
     #[cfg(target_arch = "spirv")]
     return test_leaf_each(scene, shear, n, best, tests, any_hit);
     #[cfg(not(target_arch = "spirv"))]
-    return test_leaf_blocks(scene, shear, n, best, tests, any_hit);
+    return test_blocks::<MASKS>(scene, shear, n, best, tests, any_hit);
 }
 
 /// `test_leaf` one triangle at a time, in the order of the leaf's run.
@@ -231,6 +231,22 @@ pub fn test_leaf_blocks(
     tests: &mut u32,
     any_hit: bool,
 ) -> bool {
+    test_blocks::<true>(scene, shear, n, best, tests, any_hit)
+}
+
+/// `test_leaf_blocks` with the masks' test compiled in (`MASKS`, then tested when the scene
+/// view has masks) or out: a scene without masks traverses without the retest loop's code
+/// (`traverse`'s variant per setting).
+#[cfg(not(target_arch = "spirv"))]
+#[inline(always)]
+fn test_blocks<const MASKS: bool>(
+    scene: &SceneView,
+    shear: &RayShear,
+    n: KdNode,
+    best: &mut Hit,
+    tests: &mut u32,
+    any_hit: bool,
+) -> bool {
     let start = n.first_index();
     let end = start + n.count();
     *tests += n.count();
@@ -238,7 +254,7 @@ pub fn test_leaf_blocks(
     let mut k = start / BLOCK_WIDTH;
     let past = if start == end { k } else { end.div_ceil(BLOCK_WIDTH) };
     let mut done = false;
-    if !scene.alpha_masks {
+    if !MASKS | !scene.alpha_masks {
         // No masks: one block test per block (the loop below, without its retests).
         while (k < past) & !done {
             if let Some((lane, h)) = shear.intersect_block(&scene.blocks[k as usize], ALL_LANES, 0.0, best.t, any_hit) {
@@ -247,6 +263,9 @@ pub fn test_leaf_blocks(
                 done = any_hit;
             }
             k += 1;
+        }
+        if !MASKS {
+            return done;
         }
     }
     while (k < past) & !done {
@@ -380,7 +399,19 @@ pub fn occluded_hit(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32) -> H
     traverse(scene, origin, dir, t_max, true)
 }
 
+/// The closest (or any) hit with t in (0, t_max). On the CPU, a scene without alpha masks runs
+/// a traversal compiled without their test (`test_blocks`); a GPU variant has it or not by its
+/// specialisation constant, so it compiles one.
+#[inline]
 pub(crate) fn traverse(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32, any_hit: bool) -> Hit {
+    #[cfg(not(target_arch = "spirv"))]
+    if !scene.alpha_masks {
+        return traverse_with::<false>(scene, origin, dir, t_max, any_hit);
+    }
+    traverse_with::<true>(scene, origin, dir, t_max, any_hit)
+}
+
+fn traverse_with<const MASKS: bool>(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32, any_hit: bool) -> Hit {
     let mut best = Hit::miss(t_max);
     let Some(ray) = ray_start(scene, origin, dir, t_max) else { return best };
     let (dir, inv) = (ray.dir, ray.inv);
@@ -406,7 +437,7 @@ pub(crate) fn traverse(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32, a
             t1 = step.t1;
             continue;
         }
-        let answered = test_leaf(scene, &shear, n, &mut best, &mut tests, any_hit);
+        let answered = test_leaf::<MASKS>(scene, &shear, n, &mut best, &mut tests, any_hit);
         // Pop the nearest node that may still hold a closer hit.
         let mut found = false;
         while (sp > 0) & !found & !answered {

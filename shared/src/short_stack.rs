@@ -93,7 +93,7 @@ pub(crate) fn traverse<const S: usize>(
             }
             continue;
         }
-        done = test_leaf(scene, &shear, n, &mut best, &mut tests, any_hit);
+        done = test_leaf::<true>(scene, &shear, n, &mut best, &mut tests, any_hit);
         // Pop the nearest entry that may still hold a closer hit. Entries pushed for a ray lying
         // in a split plane start where the traversal already is, so the stack is not sorted by
         // distance: every entry is checked, none is assumed culled by the one above it.

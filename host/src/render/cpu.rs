@@ -1,9 +1,10 @@
 //! The CPU reference renderer: rayon over rows, each pixel through `shared::integrator`, the same
 //! function the GPU kernel runs, monomorphised for the scene's feature set (`variant`).
 //! Non-finite samples are zeroed and logged with their pixel.
+use crate::render::progressive::{check_pass, Progressive};
 use crate::render::{adaptive, Compiled, Progress, Rendered};
 use crate::settings::RenderSettings;
-use anyhow::Result;
+use anyhow::{bail, Result};
 use rayon::prelude::*;
 use shared::features::{
     FEATURES_ALL, FEATURE_ALPHA_MASKS, FEATURE_DIFFUSE, FEATURE_INDIRECT, FEATURE_MATERIALS, FEATURE_TEXTURES,
@@ -86,11 +87,8 @@ pub fn render(c: &Compiled, s: &RenderSettings, progress: Progress) -> Result<Re
     let s = &RenderSettings { traversal: s.traversal.resolve(true), ..*s };
     let (w, h) = (s.width, s.height);
     let n = (w * h) as usize;
-    let mut sum = vec![Vec4::ZERO; n];
-    let mut sum_sq = vec![Vec4::ZERO; n];
-    let mut primary = vec![NO_HIT; n];
-    let render_samples = variant(crate::render::features::variant_bits(c, s));
     if let Some(a) = s.adaptive {
+        let render_samples = variant(crate::render::features::variant_bits(c, s));
         let params = c.params(s, 0, 0)?;
         let mut dev = CpuPasses {
             scene: c.view(&params),
@@ -113,6 +111,7 @@ pub fn render(c: &Compiled, s: &RenderSettings, progress: Progress) -> Result<Re
             counts: Some(outcome.counts),
         });
     }
+    let mut passes = progressive(c, s)?;
     let total = w as u64 * h as u64 * s.spp as u64;
     let done = AtomicU64::new(0);
     let clock = Instant::now();
@@ -120,29 +119,9 @@ pub fn render(c: &Compiled, s: &RenderSettings, progress: Progress) -> Result<Re
     let mut count = if s.time_limit_s.is_some() { 1 } else { s.spp };
     while start < s.spp {
         count = count.min(s.spp - start);
-        let params = c.params(s, start, count)?;
-        let scene = c.view(&params);
         let pass_clock = Instant::now();
-        sum.par_chunks_mut(w as usize)
-            .zip(sum_sq.par_chunks_mut(w as usize))
-            .zip(primary.par_chunks_mut(w as usize))
-            .enumerate()
-            .for_each(|(y, ((sum, sum_sq), primary))| {
-                for x in 0..w as usize {
-                    let before = sum[x].w;
-                    let (px, py) = (x as u32, y as u32);
-                    let (start, count) = (params.sample_start, params.sample_count);
-                    render_samples(&scene, &params, px, py, start, count, &mut sum[x], &mut sum_sq[x], &mut primary[x]);
-                    if sum[x].w > before {
-                        eprintln!(
-                            "warning: pixel ({x}, {y}): {} non-finite or negative sample(s) zeroed",
-                            sum[x].w - before
-                        );
-                    }
-                }
-                let k = w as u64 * count as u64;
-                progress(done.fetch_add(k, Ordering::Relaxed) + k, total);
-            });
+        let k = w as u64 * count as u64;
+        passes.pass_rows(start, count, &|| progress(done.fetch_add(k, Ordering::Relaxed) + k, total))?;
         start += count;
         if let Some(limit) = s.time_limit_s {
             let elapsed = clock.elapsed().as_secs_f64();
@@ -155,7 +134,117 @@ pub fn render(c: &Compiled, s: &RenderSettings, progress: Progress) -> Result<Re
             count = (fit as u32).max(1);
         }
     }
-    Ok(Rendered { width: w, height: h, spp: start, sum, sum_sq, primary, traversal: s.traversal, counts: None })
+    Ok(passes.into_image())
+}
+
+/// Starts a progressive render of `c` with `s` on the CPU (`progressive::Progressive`): the
+/// sums allocated, the integrator's variant for the scene chosen. `s.spp`, `s.time_limit_s`
+/// and `s.adaptive` are the caller's to apply (adaptive settings are refused).
+pub fn progressive<'a>(c: &'a Compiled, s: &RenderSettings) -> Result<CpuProgressive<'a>> {
+    s.check()?;
+    if s.adaptive.is_some() {
+        bail!("a progressive render adds the same samples to every pixel: adaptive sampling does not apply");
+    }
+    let s = RenderSettings { traversal: s.traversal.resolve(true), ..*s };
+    let n = s.width as usize * s.height as usize;
+    Ok(CpuProgressive {
+        c,
+        render_samples: variant(crate::render::features::variant_bits(c, &s)),
+        s,
+        sum: vec![Vec4::ZERO; n],
+        sum_sq: vec![Vec4::ZERO; n],
+        primary: vec![NO_HIT; n],
+        spp: 0,
+    })
+}
+
+/// A render in progress on the CPU (`progressive`): the sums of every pixel, passes of rayon
+/// over rows.
+pub struct CpuProgressive<'a> {
+    c: &'a Compiled,
+    /// The settings, the traversal resolved for the CPU.
+    s: RenderSettings,
+    render_samples: VariantFn,
+    sum: Vec<Vec4>,
+    sum_sq: Vec<Vec4>,
+    primary: Vec<u32>,
+    spp: u32,
+}
+
+impl CpuProgressive<'_> {
+    /// `pass`, calling `row_done` after each row (from rayon's threads).
+    pub fn pass_rows(&mut self, start: u32, count: u32, row_done: &(dyn Fn() + Sync)) -> Result<()> {
+        check_pass(self.spp, start, count)?;
+        if count == 0 {
+            return Ok(());
+        }
+        let (c, w, render_samples) = (self.c, self.s.width as usize, self.render_samples);
+        let params = c.params(&self.s, start, count)?;
+        let scene = c.view(&params);
+        self.sum
+            .par_chunks_mut(w)
+            .zip(self.sum_sq.par_chunks_mut(w))
+            .zip(self.primary.par_chunks_mut(w))
+            .enumerate()
+            .for_each(|(y, ((sum, sum_sq), primary))| {
+                for x in 0..w {
+                    let before = sum[x].w;
+                    let (px, py) = (x as u32, y as u32);
+                    let (start, count) = (params.sample_start, params.sample_count);
+                    render_samples(&scene, &params, px, py, start, count, &mut sum[x], &mut sum_sq[x], &mut primary[x]);
+                    if sum[x].w > before {
+                        eprintln!(
+                            "warning: pixel ({x}, {y}): {} non-finite or negative sample(s) zeroed",
+                            sum[x].w - before
+                        );
+                    }
+                }
+                row_done();
+            });
+        self.spp += count;
+        Ok(())
+    }
+
+    /// The image accumulated so far, without copying the sums.
+    pub fn into_image(self) -> Rendered {
+        Rendered {
+            width: self.s.width,
+            height: self.s.height,
+            spp: self.spp,
+            sum: self.sum,
+            sum_sq: self.sum_sq,
+            primary: self.primary,
+            traversal: self.s.traversal,
+            counts: None,
+        }
+    }
+}
+
+impl Progressive for CpuProgressive<'_> {
+    fn pass(&mut self, start: u32, count: u32) -> Result<()> {
+        self.pass_rows(start, count, &|| {})
+    }
+
+    fn image(&mut self) -> Result<Rendered> {
+        Ok(Rendered {
+            width: self.s.width,
+            height: self.s.height,
+            spp: self.spp,
+            sum: self.sum.clone(),
+            sum_sq: self.sum_sq.clone(),
+            primary: self.primary.clone(),
+            traversal: self.s.traversal,
+            counts: None,
+        })
+    }
+
+    fn spp(&self) -> u32 {
+        self.spp
+    }
+
+    fn device(&self) -> String {
+        format!("cpu ({} threads)", rayon::current_num_threads())
+    }
 }
 
 /// Adaptive sampling's passes on the CPU: rayon over rows, each pixel its own range.

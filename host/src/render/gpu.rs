@@ -3,6 +3,7 @@
 //! Each pass dispatches one invocation per pixel that adds a few samples to the pixel's running
 //! sum in a storage buffer, so progress can be reported between passes and no single dispatch
 //! runs long enough to trip a driver watchdog. The sum is read back once at the end.
+use crate::render::progressive::{check_pass, Progressive};
 use crate::render::{Compiled, Progress, Rendered};
 use crate::settings::{Dispatch, RenderSettings};
 use anyhow::{anyhow, bail, Context, Result};
@@ -353,9 +354,9 @@ impl Gpu {
         Ok(())
     }
 
-    pub fn render(&self, c: &Compiled, s: &RenderSettings, progress: Progress) -> Result<Rendered> {
-        s.check()?;
-        let s = &RenderSettings { traversal: s.traversal.resolve(self.is_cpu()), ..*s };
+    /// The scene uploaded and the image's buffers created and bound, for a render of `s` (its
+    /// traversal resolved).
+    fn allocate(&self, c: &Compiled, s: &RenderSettings) -> Result<ImageBuffers> {
         let pixels = s.width as u64 * s.height as u64;
         self.check_size("image", pixels as usize * 16)?;
         let scene = self.upload_scene(c)?;
@@ -372,31 +373,70 @@ impl Gpu {
         });
         let live = self.output("live pixels", if s.adaptive.is_some() { pixels * 16 } else { 0 });
         let group = self.bind(&scene, &accum, &primary, &rays, &results, &work, &accum_sq, &live);
+        Ok(ImageBuffers { scene, accum, accum_sq, primary, work, live, group, pixels, accum_bytes })
+    }
+
+    pub fn render(&self, c: &Compiled, s: &RenderSettings, progress: Progress) -> Result<Rendered> {
+        s.check()?;
+        let s = &RenderSettings { traversal: s.traversal.resolve(self.is_cpu()), ..*s };
         if let Some(a) = s.adaptive {
+            let b = self.allocate(c, s)?;
             let mut params = c.params(s, 0, 0)?;
             params.persistent_rounds = 0;
             let mut dev = GpuPasses {
                 gpu: self,
                 pipeline: self.pipeline(LIST_ENTRY, variant(c, s))?,
-                group: &group,
+                group: &b.group,
                 params,
-                params_buffer: &scene.params,
-                live: &live,
-                accum: &accum,
-                bytes: accum_bytes,
+                params_buffer: &b.scene.params,
+                live: &b.live,
+                accum: &b.accum,
+                bytes: b.accum_bytes,
             };
             let outcome = super::adaptive::render(&mut dev, s, a, progress)?;
             return Ok(Rendered {
                 width: s.width,
                 height: s.height,
                 spp: s.spp,
-                sum: self.read_back(&accum, accum_bytes)?,
-                sum_sq: self.read_back(&accum_sq, accum_bytes)?,
-                primary: self.read_back(&primary, pixels * 4)?,
+                sum: self.read_back(&b.accum, b.accum_bytes)?,
+                sum_sq: self.read_back(&b.accum_sq, b.accum_bytes)?,
+                primary: self.read_back(&b.primary, b.pixels * 4)?,
                 traversal: s.traversal,
                 counts: Some(outcome.counts),
             });
         }
+        let mut passes = self.progressive(c, s)?;
+        let pixels = passes.buffers.pixels;
+        let total = pixels * s.spp as u64;
+        let clock = std::time::Instant::now();
+        let mut start = 0;
+        while start < s.spp {
+            // One dispatch a pass, so progress and the time limit are seen after each.
+            let count = passes.per_dispatch.min(s.spp - start);
+            passes.pass(start, count)?;
+            start += count;
+            progress(pixels * start as u64, total);
+            // A time limit ends the render between passes: every pixel has `start` samples.
+            if s.time_limit_s.is_some_and(|limit| clock.elapsed().as_secs_f64() >= limit) {
+                break;
+            }
+        }
+        passes.image()
+    }
+
+    /// Starts a progressive render of `c` with `s` on this adapter (`progressive::Progressive`):
+    /// uploads the scene, creates and binds the image's buffers and compiles the pipeline
+    /// (`s.dispatch`'s entry point, specialised for the scene). `s.spp` bounds the samples per
+    /// dispatch (a pass takes as many dispatches as it needs); `s.time_limit_s` is the caller's to
+    /// apply, and adaptive settings are refused.
+    pub fn progressive<'a>(&'a self, c: &'a Compiled, s: &RenderSettings) -> Result<GpuProgressive<'a>> {
+        s.check()?;
+        if s.adaptive.is_some() {
+            bail!("a progressive render adds the same samples to every pixel: adaptive sampling does not apply");
+        }
+        let s = RenderSettings { traversal: s.traversal.resolve(self.is_cpu()), ..*s };
+        let buffers = self.allocate(c, &s)?;
+        let pixels = buffers.pixels;
         // Work per invocation and dispatch, bounded on CPU adapters (see `CPU_ADAPTER_*`).
         let cpu_adapter = self.is_cpu();
         let batches = pixels.div_ceil(PERSISTENT_GROUP as u64) as u32;
@@ -412,47 +452,9 @@ impl Gpu {
             Dispatch::Plain => RENDER_ENTRY,
             Dispatch::Persistent => PERSISTENT_ENTRY,
         };
-        let pipeline = &self.pipeline(entry, variant(c, s))?;
-        let per_pass = ((PATHS_PER_PASS / pixels.max(1)) as u32).clamp(1, s.spp.min(max_per_pass));
-        let total = pixels * s.spp as u64;
-        let clock = std::time::Instant::now();
-        let mut start = 0;
-        while start < s.spp {
-            let count = per_pass.min(s.spp - start);
-            let mut params = c.params(s, start, count)?;
-            params.persistent_rounds = rounds;
-            self.queue.write_buffer(&scene.params, 0, bytemuck::bytes_of(&params));
-            match s.dispatch {
-                Dispatch::Plain => self.dispatch(
-                    pipeline,
-                    &group,
-                    (s.width.div_ceil(RENDER_GROUP_SIDE), s.height.div_ceil(RENDER_GROUP_SIDE)),
-                )?,
-                Dispatch::Persistent => {
-                    self.queue.write_buffer(&work, 0, bytemuck::bytes_of(&[0u32; 4]));
-                    self.dispatch(pipeline, &group, (persistent_groups, 1))?
-                }
-            }
-            start += count;
-            progress(pixels * start as u64, total);
-            // A time limit ends the render between passes: every pixel has `start` samples.
-            if s.time_limit_s.is_some_and(|limit| clock.elapsed().as_secs_f64() >= limit) {
-                break;
-            }
-        }
-        let sum: Vec<Vec4> = self.read_back(&accum, accum_bytes)?;
-        let sum_sq: Vec<Vec4> = self.read_back(&accum_sq, accum_bytes)?;
-        let primary: Vec<u32> = self.read_back(&primary, pixels * 4)?;
-        Ok(Rendered {
-            width: s.width,
-            height: s.height,
-            spp: start,
-            sum,
-            sum_sq,
-            primary,
-            traversal: s.traversal,
-            counts: None,
-        })
+        let pipeline = self.pipeline(entry, variant(c, &s))?;
+        let per_dispatch = ((PATHS_PER_PASS / pixels.max(1)) as u32).clamp(1, s.spp.min(max_per_pass));
+        Ok(GpuProgressive { gpu: self, c, s, buffers, pipeline, per_dispatch, rounds, persistent_groups, spp: 0 })
     }
 
     /// Casts a batch of rays through the scene's tree (no shading); one result per ray.
@@ -518,6 +520,97 @@ impl Gpu {
         drop(data);
         staging.unmap();
         Ok(out)
+    }
+}
+
+/// The scene's buffers and the image's, bound (`Gpu::allocate`).
+struct ImageBuffers {
+    scene: SceneBuffers,
+    accum: wgpu::Buffer,
+    accum_sq: wgpu::Buffer,
+    primary: wgpu::Buffer,
+    /// The persistent kernel's work counter.
+    work: wgpu::Buffer,
+    /// Adaptive sampling's list of pixels (a placeholder otherwise).
+    live: wgpu::Buffer,
+    group: wgpu::BindGroup,
+    pixels: u64,
+    accum_bytes: u64,
+}
+
+/// A render in progress on a GPU (`Gpu::progressive`): the scene and the sums on the device,
+/// each pass one or more dispatches.
+pub struct GpuProgressive<'a> {
+    gpu: &'a Gpu,
+    c: &'a Compiled,
+    /// The settings, the traversal resolved for the adapter.
+    s: RenderSettings,
+    buffers: ImageBuffers,
+    pipeline: wgpu::ComputePipeline,
+    /// The most samples per pixel one dispatch adds (about `PATHS_PER_PASS` paths, at most
+    /// `s.spp`, within the CPU adapters' limits).
+    per_dispatch: u32,
+    /// The persistent kernel's rounds per workgroup (`RenderParams::persistent_rounds`).
+    rounds: u32,
+    persistent_groups: u32,
+    spp: u32,
+}
+
+impl GpuProgressive<'_> {
+    /// The most samples per pixel one dispatch adds; a pass of more takes several dispatches.
+    pub fn per_dispatch(&self) -> u32 {
+        self.per_dispatch
+    }
+}
+
+impl Progressive for GpuProgressive<'_> {
+    fn pass(&mut self, start: u32, count: u32) -> Result<()> {
+        check_pass(self.spp, start, count)?;
+        let (g, s, b) = (self.gpu, &self.s, &self.buffers);
+        let end = start + count;
+        let mut at = start;
+        while at < end {
+            let count = self.per_dispatch.min(end - at);
+            let mut params = self.c.params(s, at, count)?;
+            params.persistent_rounds = self.rounds;
+            g.queue.write_buffer(&b.scene.params, 0, bytemuck::bytes_of(&params));
+            match s.dispatch {
+                Dispatch::Plain => g.dispatch(
+                    &self.pipeline,
+                    &b.group,
+                    (s.width.div_ceil(RENDER_GROUP_SIDE), s.height.div_ceil(RENDER_GROUP_SIDE)),
+                )?,
+                Dispatch::Persistent => {
+                    g.queue.write_buffer(&b.work, 0, bytemuck::bytes_of(&[0u32; 4]));
+                    g.dispatch(&self.pipeline, &b.group, (self.persistent_groups, 1))?
+                }
+            }
+            at += count;
+            self.spp = at;
+        }
+        Ok(())
+    }
+
+    fn image(&mut self) -> Result<Rendered> {
+        let (g, b) = (self.gpu, &self.buffers);
+        Ok(Rendered {
+            width: self.s.width,
+            height: self.s.height,
+            spp: self.spp,
+            sum: g.read_back(&b.accum, b.accum_bytes)?,
+            sum_sq: g.read_back(&b.accum_sq, b.accum_bytes)?,
+            primary: g.read_back(&b.primary, b.pixels * 4)?,
+            traversal: self.s.traversal,
+            counts: None,
+        })
+    }
+
+    fn spp(&self) -> u32 {
+        self.spp
+    }
+
+    fn device(&self) -> String {
+        self.gpu.adapter.name.clone()
     }
 }
 

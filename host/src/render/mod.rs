@@ -1,7 +1,8 @@
 //! Rendering on the host: what both renderers share (the compiled scene, render parameters and
 //! the accumulated result), loading a scene into that form (`load`) or from a compiled `.kdc`
 //! file (`kdc`), the CPU reference (`cpu`), the wgpu runner of the rust-gpu kernel (`gpu`), the
-//! CPU ≡ GPU check (`verify`) and the ray-casting benchmark (`raybench`).
+//! renders driven one pass at a time on either device (`progressive`), the CPU ≡ GPU check
+//! (`verify`) and the ray-casting benchmark (`raybench`).
 pub mod adaptive;
 pub mod cpu;
 pub mod features;
@@ -9,6 +10,7 @@ pub mod gpu;
 pub mod kdc;
 pub mod load;
 pub mod memory;
+pub mod progressive;
 pub mod raybench;
 pub mod verify;
 

@@ -8,6 +8,10 @@
 //! Every function takes the `Variant` it runs as: what the scene's feature set leaves out is not
 //! done, and in a specialised build (a CPU monomorph, a GPU pipeline with specialisation
 //! constants) not compiled either.
+//!
+//! `trace_sample_recorded` runs a sample with a `record::Recorder` that hears of each event (rays,
+//! hits, emission, light and BSDF samples, roulette); `trace_sample` and the renderers pass
+//! `NoRecord`, whose hooks compile to nothing.
 use crate::camera::primary_direction;
 use crate::features::{Variant, FEATURE_EMITTERS, FEATURE_ENVIRONMENT, FEATURE_INDIRECT, FEATURE_MANY_EMITTERS};
 use crate::glam::{Vec3, Vec4};
@@ -15,7 +19,11 @@ use crate::kdtree::Hit;
 use crate::layout::{RenderParams, AOV_ALBEDO, AOV_COST, AOV_NORMAL, NO_HIT, NO_LIGHT};
 use crate::material::{albedo, emitted, eval, is_delta, picks_lobe, sample as sample_bsdf, transmits};
 use crate::numerics::{offset_ray_origin, sanitize};
-use crate::raycast::{any, closest};
+use crate::raycast::query_recorded;
+use crate::record::{
+    BsdfEvent, LightEvent, NoRecord, Recorder, SurfaceEvent, END_ABSORBED, END_AOV, END_BOUNCE_LIMIT, END_ESCAPED,
+    END_ROULETTE, LIGHT_BLOCKED, LIGHT_DELTA, LIGHT_INVALID, LIGHT_UNBLOCKED, RAY_BOUNCE, RAY_CAMERA, RAY_SHADOW,
+};
 use crate::rng::Sampler;
 use crate::sampling::{power_heuristic, remap_in_light, select_light, uniform_triangle};
 use crate::scene::SceneView;
@@ -60,6 +68,21 @@ struct Path {
 /// lost every lane's sample when one lane left the loop that way.
 #[inline(always)]
 pub fn trace_sample(scene: &SceneView, p: &RenderParams, v: Variant, px: u32, py: u32, sample: u32) -> PathSample {
+    trace_sample_recorded(scene, p, v, px, py, sample, &mut NoRecord)
+}
+
+/// `trace_sample`, telling `rec` of every event on the path (`record::Recorder`): the same code,
+/// so the same values, whatever the recorder.
+#[inline(always)]
+pub fn trace_sample_recorded<R: Recorder>(
+    scene: &SceneView,
+    p: &RenderParams,
+    v: Variant,
+    px: u32,
+    py: u32,
+    sample: u32,
+    rec: &mut R,
+) -> PathSample {
     let mut rng = Sampler::new(p.sampler, py * p.width + px, sample, p.seed);
     let (jx, jy) = rng.next_2d();
     let mut path = Path {
@@ -73,14 +96,17 @@ pub fn trace_sample(scene: &SceneView, p: &RenderParams, v: Variant, px: u32, py
     let mut primary = NO_HIT;
     let mut alive = true;
     while alive {
-        let traced = closest(scene, p.traversal, path.origin, path.dir, f32::MAX);
+        rec.ray(if path.bounce == 0 { RAY_CAMERA } else { RAY_BOUNCE }, path.origin, path.dir, f32::MAX);
+        let traced = query_recorded(scene, p.traversal, path.origin, path.dir, f32::MAX, false, rec);
         let hit = traced.hit;
+        rec.traced(hit.triangle, hit.t, hit.nodes, hit.tests, traced.restarts);
         if path.bounce == 0 {
             primary = hit.triangle;
         }
         if (path.bounce == 0) & (p.aov == AOV_COST) {
             // The cost image: the camera ray's traversal work instead of radiance.
             path.radiance = Vec3::new(hit.nodes as f32, hit.tests as f32, traced.restarts as f32);
+            rec.end(END_AOV, path.radiance);
             alive = false;
         } else if (path.bounce == 0) & ((p.aov == AOV_ALBEDO) | (p.aov == AOV_NORMAL)) {
             // The first hit's albedo or shading normal, for denoisers and debugging.
@@ -91,13 +117,19 @@ pub fn trace_sample(scene: &SceneView, p: &RenderParams, v: Variant, px: u32, py
                 let mat = &material_at(scene, v, &hit);
                 path.radiance = if p.aov == AOV_NORMAL { ns } else { albedo(v, mat) };
             }
+            rec.end(END_AOV, path.radiance);
             alive = false;
         } else if hit.is_hit() {
-            alive = shade_vertex(scene, p, v, &mut path, &mut rng, &hit);
+            alive = shade_vertex(scene, p, v, &mut path, &mut rng, &hit, rec);
         } else {
             if v.has(FEATURE_ENVIRONMENT) {
-                path.radiance += path.beta * xyz(p.environment);
+                let added = path.beta * xyz(p.environment);
+                path.radiance += added;
+                rec.escaped(added);
+            } else {
+                rec.escaped(Vec3::ZERO);
             }
+            rec.end(END_ESCAPED, path.radiance);
             alive = false;
         }
     }
@@ -115,13 +147,14 @@ fn facing(ng: Vec3, n: Vec3, dir: Vec3) -> (Vec3, bool) {
 /// One path vertex: emission (MIS-weighted against light sampling), next-event estimation, then
 /// the BSDF sample that continues the path. Returns whether the path goes on.
 #[inline(always)]
-fn shade_vertex(
+fn shade_vertex<R: Recorder>(
     scene: &SceneView,
     p: &RenderParams,
     v: Variant,
     path: &mut Path,
     rng: &mut Sampler,
     hit: &Hit,
+    rec: &mut R,
 ) -> bool {
     let dir = path.dir;
     // Without indirect light every vertex after the first adds exactly zero (nothing reflects,
@@ -158,6 +191,22 @@ fn shade_vertex(
     let n = stored_normal(tri);
     let surface = hit_point(tri, &TriangleHit { t: hit.t, u: hit.u, v: hit.v, w: hit.w });
     let pos = surface.p;
+    if R::ACTIVE {
+        // The shading normal as the BSDFs below see it, also at a last vertex, which shades
+        // nothing; computed again there, only for a recorder.
+        let (nf, front) = facing(ng, n, dir);
+        let ns = shading_normal(scene, v, hit.triangle, hit_weights(hit), nf, -normalize(dir));
+        rec.surface(SurfaceEvent {
+            bounce: path.bounce,
+            position: pos,
+            triangle: hit.triangle,
+            material: info.material,
+            material_kind: mat.kind,
+            geometric_normal: n,
+            shading_normal: ns,
+            front,
+        });
+    }
 
     // Only emitters emit, and every emitter is in the light table.
     let le = if v.has(FEATURE_EMITTERS) { emitted(mat, ng, dir) } else { Vec3::ZERO };
@@ -170,9 +219,12 @@ fn shade_vertex(
             let light_pdf = light.pmf * dist2 / (cos_l * light.area);
             weight = power_heuristic(path.bsdf_pdf, light_pdf);
         }
-        path.radiance += path.beta * le * weight;
+        let added = path.beta * le * weight;
+        path.radiance += added;
+        rec.emission(le, weight, added);
     }
     if last {
+        rec.end(END_BOUNCE_LIMIT, path.radiance);
         return false;
     }
 
@@ -205,6 +257,16 @@ fn shade_vertex(
         let wi = to_light * (1.0 / dist2.sqrt());
         let cos_l = -dot(nl, wi);
         let (f, pdf_bsdf) = eval(v, mat, scene.textures, ns, wo, wi, front);
+        let mut event = LightEvent {
+            status: LIGHT_INVALID,
+            light: index,
+            triangle: light.triangle,
+            point: q,
+            light_pdf: 0.0,
+            bsdf_pdf: pdf_bsdf,
+            mis_weight: 0.0,
+            contribution: Vec3::ZERO,
+        };
         if (cos_l > 0.0) & (pdf_bsdf > 0.0) & (dist2 > 0.0) & consistent(v, nf, ns, wi) {
             let light_pdf = light.pmf * dist2 / (cos_l * light.area);
             let target = offset_ray_origin(q, on_light.error, nl);
@@ -212,30 +274,70 @@ fn shade_vertex(
             // from the far side.
             let cos_i = dot(ns, wi);
             let from = if dot(nf, wi) < 0.0 { offset_ray_origin(pos, surface.error, -nf) } else { spawn };
-            if !any(scene, p.traversal, from, target - from, 1.0 - SHADOW_EPSILON).hit.is_hit() {
+            let (shadow_dir, shadow_t) = (target - from, 1.0 - SHADOW_EPSILON);
+            rec.ray(RAY_SHADOW, from, shadow_dir, shadow_t);
+            let shadow = query_recorded(scene, p.traversal, from, shadow_dir, shadow_t, true, rec);
+            rec.traced(shadow.hit.triangle, shadow.hit.t, shadow.hit.nodes, shadow.hit.tests, shadow.restarts);
+            event.status = LIGHT_BLOCKED;
+            event.light_pdf = light_pdf;
+            event.mis_weight = power_heuristic(light_pdf, pdf_bsdf);
+            if !shadow.hit.is_hit() {
                 let lmat = &scene.materials[scene.info[light.triangle as usize].material as usize];
                 let le = emission_at(scene, v, lmat, light.triangle, (b0, b1, b2));
                 let weight = power_heuristic(light_pdf, pdf_bsdf);
-                path.radiance += path.beta * f * le * (cos_i.abs() * weight / light_pdf);
+                let added = path.beta * f * le * (cos_i.abs() * weight / light_pdf);
+                path.radiance += added;
+                event.status = LIGHT_UNBLOCKED;
+                event.contribution = added;
             }
         }
+        rec.light(event);
+    } else if lights {
+        rec.light(LightEvent {
+            status: LIGHT_DELTA,
+            light: 0,
+            triangle: 0,
+            point: Vec3::ZERO,
+            light_pdf: 0.0,
+            bsdf_pdf: 0.0,
+            mis_weight: 0.0,
+            contribution: Vec3::ZERO,
+        });
     }
 
     // The lobe pick's uniform, drawn only for a material that has a choice.
-    let u_pick = if picks_lobe(v, mat) { rng.independent_after() } else { 0.0 };
+    let picks = picks_lobe(v, mat);
+    let u_pick = if picks { rng.independent_after() } else { 0.0 };
     let bs = sample_bsdf(v, mat, scene.textures, ns, wo, front, ub1, ub2, u_pick);
+    let mut event = BsdfEvent {
+        wi: bs.wi,
+        pdf: bs.pdf,
+        weight: bs.weight,
+        picks_lobe: picks,
+        u_pick,
+        valid: false,
+        throughput: path.beta,
+    };
     if (bs.pdf <= 0.0) | !consistent(v, nf, ns, bs.wi) {
+        rec.bsdf(event);
+        rec.end(END_ABSORBED, path.radiance);
         return false;
     }
     path.beta *= bs.weight;
+    event.valid = true;
+    event.throughput = path.beta;
+    rec.bsdf(event);
     path.bsdf_pdf = bs.pdf;
     path.bounce += 1;
     if path.bounce >= v.rr_start {
         let survive = max_component(path.beta).min(RR_MAX_SURVIVAL);
         if u_roulette >= survive {
+            rec.roulette(survive, u_roulette, false, path.beta);
+            rec.end(END_ROULETTE, path.radiance);
             return false;
         }
         path.beta /= survive;
+        rec.roulette(survive, u_roulette, true, path.beta);
     }
     // A refracted ray leaves from the far side of the surface.
     path.origin =

@@ -20,6 +20,7 @@ use crate::glam::Vec3;
 use crate::layout::BLOCK_WIDTH;
 use crate::layout::{KdNode, KD_MAX_DEPTH, NO_HIT};
 use crate::numerics::{gamma, is_finite3, T_SLACK};
+use crate::record::{NoRecord, Recorder};
 use crate::scene::SceneView;
 use crate::surface::cut_out;
 use crate::triangle::RayShear;
@@ -383,7 +384,7 @@ impl Stack {
 /// The closest hit with t in (0, t_max).
 #[inline]
 pub fn intersect(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32) -> Hit {
-    traverse(scene, origin, dir, t_max, false)
+    traverse(scene, origin, dir, t_max, false, &mut NoRecord)
 }
 
 /// Whether anything lies along the ray with t in (0, t_max).
@@ -396,22 +397,37 @@ pub fn occluded(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32) -> bool 
 /// that also reports the traversal's work.
 #[inline]
 pub fn occluded_hit(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32) -> Hit {
-    traverse(scene, origin, dir, t_max, true)
+    traverse(scene, origin, dir, t_max, true, &mut NoRecord)
 }
 
 /// The closest (or any) hit with t in (0, t_max). On the CPU, a scene without alpha masks runs
 /// a traversal compiled without their test (`test_blocks`); a GPU variant has it or not by its
-/// specialisation constant, so it compiles one.
+/// specialisation constant, so it compiles one. `rec` hears of every node visited
+/// (`Recorder::node`).
 #[inline]
-pub(crate) fn traverse(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32, any_hit: bool) -> Hit {
+pub(crate) fn traverse<R: Recorder>(
+    scene: &SceneView,
+    origin: Vec3,
+    dir: Vec3,
+    t_max: f32,
+    any_hit: bool,
+    rec: &mut R,
+) -> Hit {
     #[cfg(not(target_arch = "spirv"))]
     if !scene.alpha_masks {
-        return traverse_with::<false>(scene, origin, dir, t_max, any_hit);
+        return traverse_with::<false, R>(scene, origin, dir, t_max, any_hit, rec);
     }
-    traverse_with::<true>(scene, origin, dir, t_max, any_hit)
+    traverse_with::<true, R>(scene, origin, dir, t_max, any_hit, rec)
 }
 
-fn traverse_with<const MASKS: bool>(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32, any_hit: bool) -> Hit {
+fn traverse_with<const MASKS: bool, R: Recorder>(
+    scene: &SceneView,
+    origin: Vec3,
+    dir: Vec3,
+    t_max: f32,
+    any_hit: bool,
+    rec: &mut R,
+) -> Hit {
     let mut best = Hit::miss(t_max);
     let Some(ray) = ray_start(scene, origin, dir, t_max) else { return best };
     let (dir, inv) = (ray.dir, ray.inv);
@@ -424,6 +440,7 @@ fn traverse_with<const MASKS: bool>(scene: &SceneView, origin: Vec3, dir: Vec3, 
     let mut tests = 0u32;
     loop {
         nodes += 1;
+        rec.node(node);
         let n = scene.nodes[node as usize];
         if !n.is_leaf() {
             let step = descend(n, node, origin, dir, inv, t0, t1);

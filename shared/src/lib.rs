@@ -23,6 +23,7 @@ pub mod layout;
 pub mod material;
 pub mod numerics;
 pub mod raycast;
+pub mod record;
 pub mod rng;
 pub mod sampling;
 pub mod scene;

@@ -6,9 +6,13 @@
 //! and the CPU runs it per ray, so a batch of rays can be compared device against device ray by
 //! ray, and rays/s can be measured for the primary, ambient-occlusion and diffuse-bounce rays of
 //! Aila & Laine, "Understanding the Efficiency of Ray Traversal on GPUs" (HPG 2009).
+//!
+//! `query_recorded` is the one query behind all of them, telling a `Recorder` which nodes the
+//! traversal visits; the others pass `NoRecord`.
 use crate::glam::Vec3;
 use crate::kdtree::{self, Hit};
 use crate::layout::{RayQuery, RayResult, RAY_ALPHA_MASKS, RAY_ANY_HIT, RAY_SHORT_STACK, TRAVERSAL_SHORT_STACK};
+use crate::record::{NoRecord, Recorder};
 use crate::scene::SceneView;
 use crate::short_stack::{self, SHORT_STACK};
 use crate::vecmath::xyz;
@@ -23,11 +27,25 @@ pub struct Traced {
 /// The closest hit (or, with `any_hit`, any hit) with t in (0, t_max) by the chosen traversal.
 #[inline]
 pub fn query(scene: &SceneView, traversal: u32, origin: Vec3, dir: Vec3, t_max: f32, any_hit: bool) -> Traced {
+    query_recorded(scene, traversal, origin, dir, t_max, any_hit, &mut NoRecord)
+}
+
+/// `query`, telling `rec` of every k-d node the traversal visits (`Recorder::node`).
+#[inline]
+pub fn query_recorded<R: Recorder>(
+    scene: &SceneView,
+    traversal: u32,
+    origin: Vec3,
+    dir: Vec3,
+    t_max: f32,
+    any_hit: bool,
+    rec: &mut R,
+) -> Traced {
     if traversal == TRAVERSAL_SHORT_STACK {
-        let s = short_stack::traverse::<SHORT_STACK>(scene, origin, dir, t_max, any_hit);
+        let s = short_stack::traverse::<SHORT_STACK, R>(scene, origin, dir, t_max, any_hit, rec);
         Traced { hit: s.hit, restarts: s.restarts }
     } else {
-        Traced { hit: kdtree::traverse(scene, origin, dir, t_max, any_hit), restarts: 0 }
+        Traced { hit: kdtree::traverse(scene, origin, dir, t_max, any_hit, rec), restarts: 0 }
     }
 }
 

@@ -17,6 +17,7 @@
 //! A small stack is what makes a k-d traversal fit in a GPU thread's registers.
 use crate::glam::Vec3;
 use crate::kdtree::{descend, may_hold_closer, ray_start, test_leaf, Hit, StackEntry};
+use crate::record::{NoRecord, Recorder};
 use crate::scene::SceneView;
 use crate::triangle::RayShear;
 
@@ -26,13 +27,13 @@ pub const SHORT_STACK: usize = 4;
 /// The closest hit with t in (0, t_max), traversing with an `S`-entry stack (`S ≥ 1`).
 #[inline]
 pub fn intersect_short<const S: usize>(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32) -> ShortHit {
-    traverse::<S>(scene, origin, dir, t_max, false)
+    traverse::<S, _>(scene, origin, dir, t_max, false, &mut NoRecord)
 }
 
 /// Any hit with t in (0, t_max).
 #[inline]
 pub fn occluded_short<const S: usize>(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32) -> ShortHit {
-    traverse::<S>(scene, origin, dir, t_max, true)
+    traverse::<S, _>(scene, origin, dir, t_max, true, &mut NoRecord)
 }
 
 /// A hit and how many times the traversal restarted from the root.
@@ -42,12 +43,15 @@ pub struct ShortHit {
     pub restarts: u32,
 }
 
-pub(crate) fn traverse<const S: usize>(
+/// The short-stack traversal; `rec` hears of every node visited (`Recorder::node`), the root
+/// again after each restart, and the full traversal's nodes where it falls back to it.
+pub(crate) fn traverse<const S: usize, R: Recorder>(
     scene: &SceneView,
     origin: Vec3,
     dir: Vec3,
     t_max: f32,
     any_hit: bool,
+    rec: &mut R,
 ) -> ShortHit {
     let mut best = Hit::miss(t_max);
     let mut restarts = 0u32;
@@ -72,6 +76,7 @@ pub(crate) fn traverse<const S: usize>(
     let mut done = false;
     while !done {
         nodes += 1;
+        rec.node(node);
         let n = scene.nodes[node as usize];
         if !n.is_leaf() {
             let step = descend(n, node, origin, dir, inv, t0, t1);
@@ -132,7 +137,7 @@ pub(crate) fn traverse<const S: usize>(
         }
     }
     if fall_back {
-        let full = crate::kdtree::traverse(scene, origin, dir, t_max, any_hit);
+        let full = crate::kdtree::traverse(scene, origin, dir, t_max, any_hit, rec);
         return ShortHit {
             hit: Hit { nodes: nodes + full.nodes, tests: tests + full.tests, ..full },
             restarts: restarts + 1,

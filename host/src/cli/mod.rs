@@ -1,10 +1,11 @@
 //! The `kdtrace` command line: `render`, `verify`, `tree`, `rays`, `export`, `compile`, `compare`,
-//! `adapters`. One file per command; each prints text or, with `--json`, one line serialised
+//! `pixel`, `adapters`. One file per command; each prints text or, with `--json`, one line serialised
 //! from its report struct. Input errors exit with code 2, a failed check with 1.
 mod args;
 mod compare;
 mod compile;
 mod export;
+mod pixel;
 mod rays;
 mod render;
 mod tree;
@@ -46,6 +47,9 @@ enum Command {
     Rays(rays::RaysArgs),
     /// Compare a linear image (EXR or PFM) against a reference: RMSE, relMSE, MAE, ꟻLIP, NaN/Inf.
     Compare(compare::CompareArgs),
+    /// Replay one sample of one pixel on the CPU and print its path as JSON: every vertex, light
+    /// and BSDF sample, and the k-d nodes each ray visited.
+    Pixel(pixel::PixelArgs),
 }
 
 /// Parses the command line, runs the command and maps its outcome to the exit code.
@@ -58,6 +62,7 @@ pub fn run() -> ExitCode {
         Command::Export(a) => export::run(a),
         Command::Compile(a) => compile::run(a),
         Command::Compare(a) => compare::run(a),
+        Command::Pixel(a) => pixel::run(a),
         Command::Adapters => adapters(),
     };
     match result {

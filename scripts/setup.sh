@@ -1,9 +1,14 @@
 #!/usr/bin/env bash
 # Installs what kdtrace needs on a fresh Debian/Ubuntu machine: the pinned nightly that rust-gpu
 # 0.11 requires, the SPIR-V tools rust-gpu links against, and Mesa's lavapipe (a Vulkan device on
-# the CPU) so the GPU path runs even where no GPU is attached. Idempotent.
+# the CPU) so the GPU path runs even where no GPU is attached. With --tests, also what the test
+# suite needs beyond that: Debian's chromium, Node.js and npm (the web UI's browser test drives
+# chromium through npm's playwright-core, installed into tests/web), and iproute2 (the server
+# tests run in network namespaces of their own). Idempotent.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+tests=0
+if [ "${1:-}" = "--tests" ]; then tests=1; fi
 
 SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
@@ -15,6 +20,13 @@ command -v c++ >/dev/null 2>&1 || need_apt+=(g++)
 # lavapipe: only needed where no Vulkan driver is installed, harmless beside a real one.
 ls /usr/share/vulkan/icd.d/lvp_icd*.json >/dev/null 2>&1 || need_apt+=(mesa-vulkan-drivers)
 ldconfig -p 2>/dev/null | grep -q 'libvulkan.so.1' || need_apt+=(libvulkan1)
+if [ $tests = 1 ]; then
+  [ -x /usr/lib/chromium/chromium ] || need_apt+=(chromium)
+  command -v node >/dev/null 2>&1 || need_apt+=(nodejs)
+  command -v npm >/dev/null 2>&1 || need_apt+=(npm)
+  command -v ip >/dev/null 2>&1 || need_apt+=(iproute2)
+  command -v unshare >/dev/null 2>&1 || need_apt+=(util-linux)
+fi
 if [ ${#need_apt[@]} -gt 0 ]; then
   echo "setup: installing ${need_apt[*]}" >&2
   $SUDO apt-get update -qq
@@ -34,3 +46,8 @@ for c in "${components[@]}"; do
     rustup component add --toolchain "$toolchain" "$c"
   fi
 done
+
+if [ $tests = 1 ] && [ ! -d tests/web/node_modules/playwright-core ]; then
+  echo "setup: installing playwright-core into tests/web" >&2
+  (cd tests/web && npm ci --no-audit --no-fund --loglevel=error)
+fi

@@ -14,6 +14,7 @@ pub mod image;
 pub mod kdbuild;
 pub mod render;
 pub mod scene;
+pub mod serve;
 pub mod settings;
 
 pub use render::load::{compile, load, Loaded, SceneKind};

@@ -1,6 +1,6 @@
 //! The `kdtrace` command line: `render`, `verify`, `tree`, `rays`, `export`, `compile`, `compare`,
-//! `pixel`, `adapters`. One file per command; each prints text or, with `--json`, one line serialised
-//! from its report struct. Input errors exit with code 2, a failed check with 1.
+//! `pixel`, `serve`, `adapters`. One file per command; each prints text or, with `--json`, one
+//! line serialised from its report struct. Input errors exit with code 2, a failed check with 1.
 mod args;
 mod compare;
 mod compile;
@@ -8,6 +8,7 @@ mod export;
 mod pixel;
 mod rays;
 mod render;
+mod serve;
 mod tree;
 mod verify;
 
@@ -15,7 +16,8 @@ use crate::render::{Compiled, Rendered};
 use crate::settings::{Adaptive, RenderSettings};
 use crate::{kdbuild, Loaded};
 use anyhow::{Context, Result};
-use args::{Device, ImageArgs};
+pub use args::Device;
+use args::ImageArgs;
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::Path;
@@ -50,6 +52,9 @@ enum Command {
     /// Replay one sample of one pixel on the CPU and print its path as JSON: every vertex, light
     /// and BSDF sample, and the k-d nodes each ray visited.
     Pixel(pixel::PixelArgs),
+    /// Serve the web UI: progressive renders with camera controls and a remote debugger that
+    /// replays a pixel's sample (websocket protocol in the README).
+    Serve(serve::ServeArgs),
 }
 
 /// Parses the command line, runs the command and maps its outcome to the exit code.
@@ -63,6 +68,7 @@ pub fn run() -> ExitCode {
         Command::Compile(a) => compile::run(a),
         Command::Compare(a) => compare::run(a),
         Command::Pixel(a) => pixel::run(a),
+        Command::Serve(a) => serve::run(a),
         Command::Adapters => adapters(),
     };
     match result {
@@ -106,7 +112,7 @@ fn settings(a: &ImageArgs, loaded: &Loaded, scene: &Path) -> Result<RenderSettin
 
 /// Loads a scene, building its tree (unless stored) with `build`, and reports its warnings on
 /// stderr.
-fn load(path: &Path, build: kdbuild::BuildSettings) -> Result<Loaded> {
+pub(crate) fn load(path: &Path, build: kdbuild::BuildSettings) -> Result<Loaded> {
     let loaded = crate::load(path, build)?;
     for w in &loaded.warnings {
         eprintln!("warning: {w}");

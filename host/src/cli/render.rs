@@ -90,14 +90,10 @@ pub fn run(r: RenderArgs) -> Result<ExitCode> {
     let run = run_device(r.device, c, &s, &r.image)?;
     let img = &run.image;
     let pixels = img.mean();
-    if s.aov == Aov::Cost && !io::is_exr(&r.out) {
-        io::write_image(&r.out, s.width, s.height, &io::heat_map(&pixels))?;
-    } else if s.aov == Aov::Normal && !io::is_exr(&r.out) {
-        // A PNG holds 0..1: the usual normal-map encoding.
-        let encoded: Vec<[f32; 3]> = pixels.iter().map(|p| p.map(|c| 0.5 + 0.5 * c)).collect();
-        io::write_image(&r.out, s.width, s.height, &encoded)?;
-    } else {
+    if io::is_exr(&r.out) {
         io::write_image(&r.out, s.width, s.height, &pixels)?;
+    } else {
+        io::write_image(&r.out, s.width, s.height, &io::for_display(s.aov, &pixels))?;
     }
     if let Some(v) = &r.variance {
         io::write_image(v, s.width, s.height, &img.variance())?;

@@ -1,6 +1,7 @@
 //! Images: PNG in 8-bit sRGB (clamped) and EXR in linear 32-bit float out, chosen by extension,
 //! written through `files::write_atomic`; EXR and PFM in.
 use crate::files::{self, write_atomic, MAX_IMAGE_BYTES};
+use crate::settings::Aov;
 use anyhow::{anyhow, bail, Result};
 use std::path::Path;
 
@@ -45,26 +46,42 @@ pub fn heat_map(cost: &[[f32; 3]]) -> Vec<[f32; 3]> {
         .collect()
 }
 
+/// What an 8-bit image shows of an AOV's linear values: the cost as a heat map, normals as
+/// 0.5 + 0.5·n (the usual normal-map encoding), radiance and albedo as they are.
+pub fn for_display(aov: Aov, pixels: &[[f32; 3]]) -> Vec<[f32; 3]> {
+    match aov {
+        Aov::Cost => heat_map(pixels),
+        Aov::Normal => pixels.iter().map(|p| p.map(|c| 0.5 + 0.5 * c)).collect(),
+        Aov::Radiance | Aov::Albedo => pixels.to_vec(),
+    }
+}
+
+/// Linear RGB as an 8-bit sRGB PNG in memory (what `write_image` writes to a .png).
+pub fn encode_png(width: u32, height: u32, rgb: &[[f32; 3]]) -> Result<Vec<u8>> {
+    if rgb.len() != width as usize * height as usize {
+        bail!("{} pixels for a {width}x{height} image", rgb.len());
+    }
+    let bytes: Vec<u8> = rgb.iter().flat_map(|p| p.map(|c| (linear_to_srgb(c) * 255.0 + 0.5) as u8)).collect();
+    let mut png = Vec::new();
+    image::write_buffer_with_format(
+        &mut std::io::Cursor::new(&mut png),
+        &bytes,
+        width,
+        height,
+        image::ExtendedColorType::Rgb8,
+        image::ImageFormat::Png,
+    )
+    .map_err(|e| anyhow!("PNG: {e}"))?;
+    Ok(png)
+}
+
 pub fn write_image(path: &Path, width: u32, height: u32, rgb: &[[f32; 3]]) -> Result<()> {
     if rgb.len() != (width * height) as usize {
         bail!("{}: {} pixels for a {width}x{height} image", path.display(), rgb.len());
     }
     let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).unwrap_or_default();
     match ext.as_str() {
-        "png" => {
-            let bytes: Vec<u8> = rgb.iter().flat_map(|p| p.map(|c| (linear_to_srgb(c) * 255.0 + 0.5) as u8)).collect();
-            write_atomic(path, |w| {
-                image::write_buffer_with_format(
-                    w,
-                    &bytes,
-                    width,
-                    height,
-                    image::ExtendedColorType::Rgb8,
-                    image::ImageFormat::Png,
-                )
-                .map_err(|e| anyhow!("PNG: {e}"))
-            })
-        }
+        "png" => files::write_bytes(path, &encode_png(width, height, rgb)?),
         "exr" => write_atomic(path, |w| {
             use exr::prelude::*;
             let pixels = SpecificChannels::rgb(|p: Vec2<usize>| {

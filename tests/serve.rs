@@ -351,3 +351,38 @@ fn leaving_or_replacing_or_stopping_ends_the_render_and_clients_are_limited() {
         drop(b);
     });
 }
+
+#[test]
+fn gpu_renders_and_the_cost_view_equal_the_cli() {
+    if isolate("gpu_renders_and_the_cost_view_equal_the_cli") {
+        return;
+    }
+    let scene = box_scene();
+    // lavapipe: the GPU the tests have, and the one the CLI picks with the same name.
+    let server = Server::start(&[scene.to_str().unwrap(), "--adapter", "llvmpipe"]);
+    let dir = scratch("gpu");
+    runtime().block_on(async {
+        let mut c = server.connect().await;
+        let hello = c.next_of("hello", 10.0).await;
+        assert!(hello["devices"].as_array().unwrap().iter().any(|d| d == "gpu"), "no gpu in {hello}");
+        for (device, aov) in [("gpu", "radiance"), ("cpu", "cost"), ("gpu", "cost")] {
+            let request = json!({"type": "render", "spp": 5, "width": 24, "height": 24, "bounces": 2,
+                "device": device, "aov": aov});
+            c.send_json(&request).await;
+            let frames = frames_until_done(&mut c, 120.0).await;
+            let (progress, png) = frames.last().unwrap();
+            assert_eq!(progress["spp"], 5);
+            if device == "gpu" {
+                assert!(progress["device"].as_str().unwrap().contains("llvmpipe"), "{progress}");
+            }
+            let out = dir.join(format!("{device}-{aov}.png"));
+            let mut args = cli_args(&request);
+            args.extend(["--device", device, "--aov", aov, "--adapter", "llvmpipe"].map(String::from));
+            cli_render(&scene, &args, &out);
+            assert!(
+                decode_png(png) == decode_png(&std::fs::read(&out).unwrap()),
+                "{device} {aov}: the last frame differs from the CLI's PNG"
+            );
+        }
+    });
+}

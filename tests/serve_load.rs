@@ -139,6 +139,9 @@ fn twenty_clients_rendering_and_clicking_stay_served() {
 
     assert!(errors.is_empty(), "errors under load: {errors:?}");
     assert!(frames.iter().all(|&f| f > 0), "a client got no frame: {frames:?}");
+    // Fair shares: passes are taken in turn, so no client gets far fewer frames than another.
+    let (least, most) = (*frames.iter().min().unwrap(), *frames.iter().max().unwrap());
+    assert!(3 * least >= most, "unfair: frames per client from {least} to {most}");
     let asked: usize = seen.iter().map(|s| s.renders as usize).sum();
     assert_eq!(replies.len(), asked, "every click gets its path");
     let p99 = percentile(&replies, 0.99);

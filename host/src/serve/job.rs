@@ -9,7 +9,7 @@ use crate::image::io;
 use crate::render::progressive::Progressive;
 use crate::settings::RenderSettings;
 use anyhow::Result;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::Instant;
 use tokio::sync::watch;
@@ -36,12 +36,13 @@ pub struct Frame {
 
 /// A render under way; dropping it does not stop it, `stop` does.
 pub struct Job {
-    cancel: Arc<AtomicBool>,
+    cancel: watch::Sender<bool>,
 }
 
 impl Job {
+    /// Stops the render after its current pass; one waiting for its turn leaves the queue now.
     pub fn stop(&self) {
-        self.cancel.store(true, Ordering::SeqCst);
+        self.cancel.send_replace(true);
     }
 }
 
@@ -55,8 +56,7 @@ pub struct Spec {
 /// Starts a render on a blocking thread; its frames arrive on the returned receiver.
 pub fn start(state: Arc<State>, spec: Spec) -> (Job, watch::Receiver<Update>) {
     let (tx, rx) = watch::channel(Update::Started);
-    let cancel = Arc::new(AtomicBool::new(false));
-    let flag = cancel.clone();
+    let (cancel, flag) = watch::channel(false);
     let runtime = tokio::runtime::Handle::current();
     state.renders.fetch_add(1, Ordering::SeqCst);
     tokio::task::spawn_blocking(move || {
@@ -81,7 +81,7 @@ impl Drop for Running<'_> {
 fn render(
     state: &State,
     spec: &Spec,
-    cancel: &AtomicBool,
+    cancel: &watch::Receiver<bool>,
     tx: &watch::Sender<Update>,
     runtime: &tokio::runtime::Handle,
 ) -> Result<()> {
@@ -98,16 +98,19 @@ fn render(
     let mut done = 0u32;
     let mut count = 1u32;
     while done < s.spp {
-        if cancel.load(Ordering::SeqCst) || tx.is_closed() {
-            return Ok(());
-        }
         count = count.min(s.spp - done);
         let pass_s = {
-            // Wait for this client's turn; the permit is given back when the pass ends.
-            let _turn = runtime.block_on(state.passes.acquire())?;
-            if cancel.load(Ordering::SeqCst) {
-                return Ok(());
-            }
+            // Wait for this client's turn, unless the render is stopped or its client leaves
+            // meanwhile; the permit is given back when the pass ends.
+            let mut stopped = cancel.clone();
+            let turn = runtime.block_on(async {
+                tokio::select! {
+                    turn = state.passes.acquire() => Some(turn),
+                    _ = stopped.wait_for(|&stop| stop) => None,
+                    _ = tx.closed() => None,
+                }
+            });
+            let Some(Ok(_turn)) = turn else { return Ok(()) };
             let t = Instant::now();
             renderer.pass(done, count)?;
             t.elapsed().as_secs_f64()

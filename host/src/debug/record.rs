@@ -39,7 +39,8 @@ pub struct PathRecord {
     /// The camera ray: origin (the eye, world) and unit direction.
     pub camera_origin: [f64; 3],
     pub camera_direction: [f32; 3],
-    /// The path's vertices in order, the camera ray's hit first.
+    /// The path's vertices in order, the camera ray's hit first (none for an auxiliary image,
+    /// `--aov`, which answers at the camera ray: `end` is then "aov").
     pub vertices: Vec<VertexRecord>,
     /// The ray that left the scene, where the path ended so.
     pub escaped: Option<EscapeRecord>,

@@ -64,7 +64,11 @@ fn is(v: Variant, m: &Material, kind: u32, bit: u32) -> bool {
 
 /// BSDF value f(wo, wi) (without the cosine) and the pdf of `sample` choosing `wi`. `words`:
 /// the texture buffer (`SceneView::textures`), where a rough plastic's table lives.
-#[inline]
+// Forced on the CPU, like the traversal's leaf test: called, these see the variant's feature
+// bits as run-time values and test every kind; inlined into a monomorph, the dispatch folds to
+// the kinds the variant has.
+#[cfg_attr(not(target_arch = "spirv"), inline(always))]
+#[cfg_attr(target_arch = "spirv", inline)]
 #[allow(clippy::too_many_arguments)]
 pub fn eval(v: Variant, m: &Material, words: &[u32], n: Vec3, wo: Vec3, wi: Vec3, front: bool) -> (Vec3, f32) {
     if is(v, m, MATERIAL_DIFFUSE, FEATURE_DIFFUSE) {
@@ -89,7 +93,8 @@ pub fn eval(v: Variant, m: &Material, words: &[u32], n: Vec3, wo: Vec3, wi: Vec3
 /// (the lobe, where there is a choice); `front`: the ray arrived on the counter-clockwise
 /// (outside) side, which a dielectric needs to know which medium is which; `words`: as for `eval`. `u3` must be
 /// independent of `u1`, `u2` (`rng::Sampler::independent_after`) where `picks_lobe`.
-#[inline]
+#[cfg_attr(not(target_arch = "spirv"), inline(always))]
+#[cfg_attr(target_arch = "spirv", inline)]
 #[allow(clippy::too_many_arguments)]
 pub fn sample(
     v: Variant,

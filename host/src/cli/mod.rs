@@ -112,8 +112,8 @@ fn settings(a: &ImageArgs, loaded: &Loaded, scene: &Path) -> Result<RenderSettin
 
 /// Loads a scene, building its tree (unless stored) with `build`, and reports its warnings on
 /// stderr.
-pub(crate) fn load(path: &Path, build: kdbuild::BuildSettings) -> Result<Loaded> {
-    let loaded = crate::load(path, build)?;
+pub(crate) fn load(path: &Path, build: kdbuild::BuildSettings, camera: Option<&str>) -> Result<Loaded> {
+    let loaded = crate::render::load::load_with_camera(path, build, camera)?;
     for w in &loaded.warnings {
         eprintln!("warning: {w}");
     }

@@ -84,6 +84,7 @@ fn every_sample_renders_on_the_cpu_and_lavapipe_alike() {
         "TextureTransformTest/TextureTransformTest.gltf",
         "EmissiveStrengthTest/EmissiveStrengthTest.gltf",
         "MetalRoughSpheresNoTextures/MetalRoughSpheresNoTextures.gltf",
+        "TransmissionTest/TransmissionTest.gltf",
     ] {
         let l = load(&data(file), None);
         let lit =
@@ -238,9 +239,15 @@ fn cameras_are_chosen_by_index_or_refused() {
 const QUADRANTS: [[u8; 3]; 4] = [[255, 0, 0], [0, 255, 0], [0, 0, 255], [128, 128, 128]];
 
 fn png_quadrants() -> Vec<u8> {
+    png_quadrants_alpha(255)
+}
+
+/// The quadrant image with the top left quadrant's alpha `a` (the rest opaque).
+fn png_quadrants_alpha(a: u8) -> Vec<u8> {
     let img = image::RgbaImage::from_fn(16, 16, |x, y| {
-        let c = QUADRANTS[2 * (y >= 8) as usize + (x >= 8) as usize];
-        image::Rgba([c[0], c[1], c[2], 255])
+        let q = 2 * (y >= 8) as usize + (x >= 8) as usize;
+        let c = QUADRANTS[q];
+        image::Rgba([c[0], c[1], c[2], if q == 0 { a } else { 255 }])
     });
     let mut bytes = Vec::new();
     img.write_to(&mut std::io::Cursor::new(&mut bytes), image::ImageFormat::Png).unwrap();
@@ -256,6 +263,18 @@ fn b64(bytes: &[u8]) -> String {
 /// text without its mesh key), a camera at (0, 0, 3) relative to `camera_parent` (translation
 /// JSON), all in one file with data URIs. `mode` 4 (triangles), 5 (strip) or 6 (fan).
 fn quad_gltf(mesh_node: &str, camera_translation: &str, transform: &str, mode: u32) -> String {
+    quad_gltf_with(mesh_node, camera_translation, transform, mode, "", &png_quadrants())
+}
+
+/// `quad_gltf` with `material` JSON members added to the material and the image `png`.
+fn quad_gltf_with(
+    mesh_node: &str,
+    camera_translation: &str,
+    transform: &str,
+    mode: u32,
+    material: &str,
+    png: &[u8],
+) -> String {
     let positions: [[f32; 3]; 4] = [[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [1.0, 1.0, 0.0], [-1.0, 1.0, 0.0]];
     let uvs: [[f32; 2]; 4] = [[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]];
     let indices: Vec<u16> = match mode {
@@ -280,7 +299,7 @@ fn quad_gltf(mesh_node: &str, camera_translation: &str, transform: &str, mode: u
   "nodes": [{{"mesh": 0, {mesh_node}}}, {{"camera": 0, "translation": {camera_translation}}}],
   "cameras": [{{"type": "perspective", "perspective": {{"yfov": 0.6, "znear": 0.01}}}}],
   "meshes": [{{"name": "quad", "primitives": [{{"attributes": {{"POSITION": 0, "TEXCOORD_0": 1}}, "indices": 2, "material": 0, "mode": {mode}}}]}}],
-  "materials": [{{"pbrMetallicRoughness": {{"baseColorTexture": {{"index": 0{transform}}}, "metallicFactor": 0}}}}],
+  "materials": [{{{material}"pbrMetallicRoughness": {{"baseColorTexture": {{"index": 0{transform}}}, "metallicFactor": 0}}}}],
   "textures": [{{"source": 0}}],
   "images": [{{"uri": "data:image/png;base64,{png}"}}],
   "buffers": [{{"byteLength": {len}, "uri": "data:application/octet-stream;base64,{data}"}}],
@@ -292,7 +311,7 @@ fn quad_gltf(mesh_node: &str, camera_translation: &str, transform: &str, mode: u
     {{"bufferView": 2, "componentType": 5123, "count": {n}, "type": "SCALAR"}}
   ]
 }}"#,
-        png = b64(&png_quadrants()),
+        png = b64(png),
         len = buf.len(),
         data = b64(&buf),
         ib = 2 * n,
@@ -332,6 +351,89 @@ fn a_textured_quad_is_upright_in_every_primitive_mode_and_transforms() {
     for (q, want) in [1, 0, 3, 2].into_iter().enumerate() {
         assert!(close(got[q], linear(QUADRANTS[want])), "offset: quadrant {q}: {:?}", got[q]);
     }
+}
+
+/// alphaMode MASK cuts out where the base colour's alpha is below alphaCutoff (the top left
+/// quadrant's alpha is 0.4): the camera sees through it (black albedo, a miss) at the default
+/// cutoff 0.5, not at 0.3; BLEND is rendered as MASK at 0.5.
+#[test]
+fn alpha_masks_cut_out_below_the_cutoff() {
+    let dir = folder("alpha");
+    for (material, cut) in [
+        (r#""alphaMode": "MASK", "#, true),
+        (r#""alphaMode": "MASK", "alphaCutoff": 0.3, "#, false),
+        (r#""alphaMode": "BLEND", "#, true),
+        ("", false),
+    ] {
+        let path = dir.join("alpha.gltf");
+        let png = png_quadrants_alpha(102);
+        std::fs::write(&path, quad_gltf_with(r#""name": "q""#, "[0, 0, 3]", "", 4, material, &png)).unwrap();
+        let got = quadrant_albedo(&path);
+        let want = if cut { [0.0; 3] } else { linear(QUADRANTS[0]) };
+        assert!(close(got[0], want), "{material}: top left {:?}", got[0]);
+        assert!(close(got[3], linear(QUADRANTS[3])), "{material}: bottom right {:?}", got[3]);
+    }
+}
+
+/// A GLB (JSON and binary chunks, the image in a buffer view) loads as the same .gltf does.
+#[test]
+fn a_glb_renders_as_its_gltf() {
+    let dir = folder("glb");
+    let text = quad_gltf(r#""name": "q""#, "[0, 0, 3]", "", 4);
+    let gltf = dir.join("quad.gltf");
+    std::fs::write(&gltf, &text).unwrap();
+    // The same file as GLB: the buffer's data URI becomes the BIN chunk, the image a buffer view
+    // after it.
+    let mut json: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let decode = |uri: &str| base64::engine::general_purpose::STANDARD.decode(uri.split_once(',').unwrap().1).unwrap();
+    let mut bin = decode(json["buffers"][0]["uri"].as_str().unwrap());
+    let png = decode(json["images"][0]["uri"].as_str().unwrap());
+    while !bin.len().is_multiple_of(4) {
+        bin.push(0);
+    }
+    let offset = bin.len();
+    bin.extend(&png);
+    while !bin.len().is_multiple_of(4) {
+        bin.push(0);
+    }
+    json["buffers"][0] = serde_json::json!({"byteLength": bin.len()});
+    json["bufferViews"]
+        .as_array_mut()
+        .unwrap()
+        .push(serde_json::json!({"buffer": 0, "byteOffset": offset, "byteLength": png.len()}));
+    json["images"][0] = serde_json::json!({"bufferView": 3, "mimeType": "image/png"});
+    let mut chunk = serde_json::to_vec(&json).unwrap();
+    while !chunk.len().is_multiple_of(4) {
+        chunk.push(b' ');
+    }
+    let mut glb = Vec::new();
+    glb.extend(b"glTF");
+    glb.extend(2u32.to_le_bytes());
+    glb.extend(((12 + 8 + chunk.len() + 8 + bin.len()) as u32).to_le_bytes());
+    glb.extend((chunk.len() as u32).to_le_bytes());
+    glb.extend(b"JSON");
+    glb.extend(&chunk);
+    glb.extend((bin.len() as u32).to_le_bytes());
+    glb.extend(b"BIN\0");
+    glb.extend(&bin);
+    let path = dir.join("quad.glb");
+    std::fs::write(&path, glb).unwrap();
+    let got = quadrant_albedo(&path);
+    for q in 0..4 {
+        assert!(close(got[q], linear(QUADRANTS[q])), "glb quadrant {q}: {:?}", got[q]);
+    }
+    let render = |p: &Path| {
+        let l = load(p, None);
+        bits(
+            &cpu::render(
+                &l.compiled,
+                &settings(&l, SceneSettings { environment: Some([1.0; 3]), ..small(8, 8, 2) }),
+                &none,
+            )
+            .unwrap(),
+        )
+    };
+    assert!(render(&gltf) == render(&path));
 }
 
 /// A node at survey coordinates (a parent translated by 1e6 on every axis, with digits no f32

@@ -216,8 +216,16 @@ fn cameras_are_chosen_by_index_or_refused() {
     let framed = RenderSettings { camera: SceneSettings::default().resolve(lo, hi).unwrap().camera, ..s };
     let other = cpu::render(&zero.compiled, &framed, &none).unwrap();
     assert!(bits(&own) != bits(&other));
-    // The CLI: an orthographic camera and --camera on an OBJ exit with 2 and say why.
+    // The CLI: --width alone keeps the camera's aspect ratio (1 here: 64 × 64, not 64 × 512).
     let dir = folder("cameras-cli");
+    let out = dir.join("aspect.png");
+    let o = Command::new(env!("CARGO_BIN_EXE_kdtrace"))
+        .args(["render", path.to_str().unwrap(), "--width", "64", "--spp", "1", "--out", out.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(image::image_dimensions(&out).unwrap(), (64, 64));
+    // An orthographic camera and --camera on an OBJ exit with 2 and say why.
     for (scene, camera, needle) in [
         (path.clone(), "1", "orthographic"),
         (PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell-box.obj"), "0", "--camera"),

@@ -19,6 +19,9 @@ pub struct Loaded {
     pub settings: SceneSettings,
     /// Problems that did not stop the load (missing MTL, dropped degenerate geometry, …).
     pub warnings: Vec<String>,
+    /// A glTF camera's aspect ratio (width / height): a `--width` or `--height` given alone keeps
+    /// it (`cli::settings`).
+    pub aspect: Option<f64>,
     pub kind: SceneKind,
     /// Reading and parsing (for a `.kdc`: reading, checking and validating everything).
     pub load_s: f64,
@@ -66,6 +69,7 @@ pub fn load_with_camera(path: &Path, settings: BuildSettings, camera: Option<&st
     if camera.is_some() && kind != SceneKind::Gltf {
         bail!("{}: --camera chooses a glTF file's camera; this scene is not a .gltf or .glb file", path.display());
     }
+    let mut aspect = None;
     let (scene, scene_settings, mut warnings) = match kind {
         SceneKind::Kdc => {
             let k = kdc::read(path)?;
@@ -76,6 +80,7 @@ pub fn load_with_camera(path: &Path, settings: BuildSettings, camera: Option<&st
                 compiled: k.compiled,
                 settings: k.settings,
                 warnings: Vec::new(),
+                aspect: None,
                 kind,
                 load_s: t0.elapsed().as_secs_f64(),
                 build_s: 0.0,
@@ -88,7 +93,8 @@ pub fn load_with_camera(path: &Path, settings: BuildSettings, camera: Option<&st
         }
         SceneKind::Gltf => {
             let g = gltf_file::load(path, &files::Disk)?;
-            let (camera_settings, camera_warnings) = g.camera_settings(path, camera)?;
+            let (camera_settings, camera_aspect, camera_warnings) = g.camera_settings(path, camera)?;
+            aspect = camera_aspect;
             let mut warnings = g.mesh.warnings;
             warnings.extend(camera_warnings);
             (g.mesh.scene, camera_settings, warnings)
@@ -120,7 +126,7 @@ pub fn load_with_camera(path: &Path, settings: BuildSettings, camera: Option<&st
     let mut compiled = Compiled::new(scene, tree);
     compiled.origin = origin;
     let prepare_s = t2.elapsed().as_secs_f64();
-    Ok(Loaded { compiled, settings: scene_settings, warnings, kind, load_s, build_s, prepare_s })
+    Ok(Loaded { compiled, settings: scene_settings, warnings, aspect, kind, load_s, build_s, prepare_s })
 }
 
 /// The scene's box in its local frame against the range the renderer computes correctly

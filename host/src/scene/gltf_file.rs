@@ -83,9 +83,13 @@ pub struct GltfScene {
 
 impl GltfScene {
     /// The render settings of camera `choice` (its index, or its name), or of the first
-    /// perspective camera when there is no choice (none at all: the framing default). An
-    /// orthographic camera is an error naming it.
-    pub fn camera_settings(&self, path: &Path, choice: Option<&str>) -> Result<(SceneSettings, Vec<String>)> {
+    /// perspective camera when there is no choice (none at all: the framing default), with the
+    /// camera's aspect ratio where it gives one. An orthographic camera is an error naming it.
+    pub fn camera_settings(
+        &self,
+        path: &Path,
+        choice: Option<&str>,
+    ) -> Result<(SceneSettings, Option<f64>, Vec<String>)> {
         let mut warnings = Vec::new();
         let camera = match choice {
             Some(c) => {
@@ -146,7 +150,7 @@ impl GltfScene {
                 s.height = Some(h);
             }
         }
-        Ok((s, warnings))
+        Ok((s, camera.and_then(|c| c.aspect), warnings))
     }
 }
 
@@ -915,5 +919,46 @@ pub fn load_any_mesh(path: &Path, files: &dyn Files) -> Result<Mesh> {
         load(path, files).map(|g| g.mesh)
     } else {
         crate::scene::obj::load_mesh(path, files)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn texture_transforms_follow_the_extension() {
+        // Offset, then rotation about the origin, then scale: T·R·S with R = [c s; −s c].
+        let (s, c) = 0.5f64.sin_cos();
+        let t = UvTransform([c * 2.0, s * 3.0, 0.25, -s * 2.0, c * 3.0, 0.5]);
+        let [u, v] = t.apply([1.0, 1.0]);
+        assert!((u - (2.0 * c + 3.0 * s + 0.25)).abs() < 1e-12);
+        assert!((v - (-2.0 * s + 3.0 * c + 0.5)).abs() < 1e-12);
+        assert_eq!(UvTransform::IDENTITY.apply([0.3, 0.7]), [0.3, 0.7]);
+    }
+
+    #[test]
+    fn uris_are_percent_decoded() {
+        assert_eq!(percent_decode("my%20image.png"), "my image.png");
+        assert_eq!(percent_decode("100%"), "100%");
+        assert_eq!(percent_decode("a%zzb"), "a%zzb");
+        assert_eq!(percent_decode("é%41"), "éA");
+    }
+
+    #[test]
+    fn node_transforms_are_read_in_f64() {
+        let json: serde_json::Value = serde_json::from_str(
+            r#"{"nodes": [{"translation": [400000.123456789, 6000000.987654321, 0.5]},
+                          {"matrix": [1,0,0,0, 0,1,0,0, 0,0,1,0, 5,6,7,1]},
+                          {"rotation": [0, 0, 0, 0]},
+                          {"translation": [1, 2]}]}"#,
+        )
+        .unwrap();
+        let p = Path::new("t.gltf");
+        let m = node_matrix(p, &json, 0).unwrap();
+        assert_eq!(m.transform_point3(DVec3::ZERO), DVec3::new(400000.123456789, 6000000.987654321, 0.5));
+        assert_eq!(node_matrix(p, &json, 1).unwrap().transform_point3(DVec3::ZERO), DVec3::new(5.0, 6.0, 7.0));
+        assert!(node_matrix(p, &json, 2).unwrap_err().to_string().contains("zero quaternion"));
+        assert!(node_matrix(p, &json, 3).unwrap_err().to_string().contains("translation needs 3 numbers"));
     }
 }

@@ -235,6 +235,9 @@ fn node_matrix(path: &Path, json: &serde_json::Value, i: usize) -> Result<DMat4>
     Ok(DMat4::from_scale_rotation_translation(s, r, t))
 }
 
+/// The most elements an accessor without a buffer view (all zeros, or sparse) may have.
+const MAX_ZERO_ELEMENTS: usize = 1 << 26;
+
 /// An accessor's elements as f64, `components` per element (normalised integers scaled as the
 /// specification says), after checking it against its buffer view and buffer.
 fn read_accessor(
@@ -326,17 +329,30 @@ fn read_accessor(
             )),
             }
         };
-    let mut out = vec![0.0; count.checked_mul(components).ok_or_else(|| format!("{what}: accessor count overflows"))?];
-    if let Some(view) = a.view() {
-        let bytes = view_bytes(&view)?;
-        let stride = view.stride().unwrap_or(elem);
-        if stride < elem {
-            return Err(format!(
-                "{what}: accessor {}: byteStride {stride} is below its element size {elem}",
-                a.index()
-            ));
+    // Checked before anything is allocated: a count the buffer cannot hold is an error.
+    let base = match a.view() {
+        Some(view) => {
+            let bytes = view_bytes(&view)?;
+            let stride = view.stride().unwrap_or(elem);
+            if stride < elem {
+                return Err(format!(
+                    "{what}: accessor {}: byteStride {stride} is below its element size {elem}",
+                    a.index()
+                ));
+            }
+            elements(bytes, a.offset(), stride, count, elem)?;
+            Some((bytes, stride))
         }
-        elements(bytes, a.offset(), stride, count, elem)?;
+        None if count > MAX_ZERO_ELEMENTS => {
+            return Err(format!(
+                "{what}: accessor {} has no buffer view and {count} elements (at most {MAX_ZERO_ELEMENTS})",
+                a.index()
+            ))
+        }
+        None => None,
+    };
+    let mut out = vec![0.0; count.checked_mul(components).ok_or_else(|| format!("{what}: accessor count overflows"))?];
+    if let Some((bytes, stride)) = base {
         for (i, e) in out.chunks_mut(components).enumerate() {
             let at = a.offset() + i * stride;
             for (c, x) in e.iter_mut().enumerate() {

@@ -383,6 +383,46 @@ fn alpha_masks_cut_out_below_the_cutoff() {
     }
 }
 
+/// A normal map (normalTexture) bends the shading normal in the frame of the texture
+/// coordinates: its red channel toward +u (here +x), its green toward the image's top (+y here,
+/// glTF's −v), scaled by `scale`; the normal image is the same bits on the CPU and lavapipe.
+#[test]
+fn normal_maps_bend_the_shading_normal() {
+    let dir = folder("normal-map");
+    let g = gpu::Gpu::lavapipe().unwrap();
+    for (rgb, scale, want) in [
+        ([204u8, 128, 230], 1.0, [0.6, 0.0, 0.8]),
+        ([128, 204, 230], 1.0, [0.0, 0.6, 0.8]),
+        ([128, 52, 230], 1.0, [0.0, -0.6, 0.8]),
+        ([204, 128, 230], 0.5, [0.3, 0.0, 0.8]),
+        ([128, 128, 255], 1.0, [0.0, 0.0, 1.0]),
+    ] {
+        let mut json: serde_json::Value =
+            serde_json::from_str(&quad_gltf(r#""name": "q""#, "[0, 0, 3]", "", 4)).unwrap();
+        let img = image::RgbaImage::from_pixel(4, 4, image::Rgba([rgb[0], rgb[1], rgb[2], 255]));
+        let mut png = Vec::new();
+        img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png).unwrap();
+        json["images"]
+            .as_array_mut()
+            .unwrap()
+            .push(serde_json::json!({"uri": format!("data:image/png;base64,{}", b64(&png))}));
+        json["textures"].as_array_mut().unwrap().push(serde_json::json!({"source": 1}));
+        json["materials"][0]["normalTexture"] = serde_json::json!({"index": 1, "scale": scale});
+        let path = dir.join("n.gltf");
+        std::fs::write(&path, serde_json::to_string(&json).unwrap()).unwrap();
+        let l = load(&path, None);
+        let s = RenderSettings { aov: Aov::Normal, ..settings(&l, small(8, 8, 1)) };
+        let a = cpu::render(&l.compiled, &s, &none).unwrap();
+        let b = g.render(&l.compiled, &s, &none).unwrap();
+        assert!(bits(&a) == bits(&b), "{rgb:?}: lavapipe's normal image differs from the CPU's");
+        let w = DVec3::from(want).normalize();
+        let got = pixel(&a, 4, 4);
+        for k in 0..3 {
+            assert!((got[k] as f64 - w[k]).abs() < 0.02, "{rgb:?} × {scale}: normal {got:?}, want {w}");
+        }
+    }
+}
+
 /// A GLB (JSON and binary chunks, the image in a buffer view) loads as the same .gltf does.
 #[test]
 fn a_glb_renders_as_its_gltf() {

@@ -24,7 +24,7 @@ use base64::Engine;
 use shared::glam::{DMat3, DMat4, DQuat, DVec3, Vec3};
 use shared::layout::{
     Material, ALPHA_CUTOFF, NO_TEXTURE, TEXTURE_ALBEDO, TEXTURE_ALPHA, TEXTURE_EMISSION, TEXTURE_METALLIC,
-    TEXTURE_ROUGHNESS,
+    TEXTURE_NORMAL, TEXTURE_ROUGHNESS,
 };
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
@@ -909,8 +909,24 @@ fn material(
         let mean = textures.textures[mat.textures[TEXTURE_EMISSION] as usize - 1].mean_rgb();
         mat.emission = Vec3::from(mean).extend(0.0);
     }
-    if m.normal_texture().is_some() {
-        notes.insert(format!("{p}: {label}: normalTexture ignored (normal maps are not supported)"));
+    if let Some(n) = m.normal_texture() {
+        let scale = n.scale();
+        if !scale.is_finite() {
+            bail!("{p}: {label}: normalTexture scale {scale} is not finite");
+        }
+        if n.tex_coord() != 0 {
+            notes.insert(format!(
+                "{p}: {label}: normalTexture reads TEXCOORD_{}; kdtrace reads TEXCOORD_0",
+                n.tex_coord()
+            ));
+        }
+        let texture = n.texture();
+        use ::gltf::texture::WrappingMode as W;
+        let clamp = texture.sampler().wrap_s() == W::ClampToEdge && texture.sampler().wrap_t() == W::ClampToEdge;
+        let (name, bytes) = image_source(path, buffers, files, &texture.source());
+        let wanted_by = format!("{p}: {label}: normalTexture");
+        mat.textures[TEXTURE_NORMAL] = textures.load_bytes(&name, bytes, Kind::Linear, clamp, &wanted_by)?;
+        mat.eta.w = scale;
     }
     if transmission.as_ref().is_some_and(|t| t.transmission_texture().is_some()) {
         notes.insert(format!("{p}: {label}: transmissionTexture ignored (the factor is used)"));

@@ -32,6 +32,8 @@ pub enum Kind {
     /// glTF: sRGB colour times a linear factor per channel (the bits of three f32s: a
     /// baseColorFactor, an emissiveFactor × strength), RGBA (alpha as read).
     ColourTimes([u32; 3]),
+    /// glTF: linear RGBA as stored (a normal map).
+    Linear,
     /// glTF: linear channel `c` (0 = R … 3 = A; an image without alpha reads 1 there) times a
     /// factor (the bits of an f32): metallic (B), roughness (G), an alpha mask (A).
     ChannelTimes(u8, u32),
@@ -40,7 +42,7 @@ pub enum Kind {
 impl Kind {
     /// Four halves a texel (RGBA) rather than one.
     pub fn is_colour(self) -> bool {
-        matches!(self, Kind::Colour | Kind::ColourTimes(_))
+        matches!(self, Kind::Colour | Kind::ColourTimes(_) | Kind::Linear)
     }
 }
 
@@ -129,6 +131,7 @@ pub fn decode(source: &Path, bytes: &[u8], kind: Kind) -> Result<Texture> {
                 })
                 .collect()
         }
+        Kind::Linear => rgba.pixels().flat_map(|p| p.0.map(|v| half(unit(v)))).collect(),
         Kind::ChannelTimes(c, f) => {
             let (c, f) = ((c as usize).min(3), f32::from_bits(f) as f64);
             rgba.pixels().map(|p| half(unit(p.0[c]) * f)).collect()

@@ -88,15 +88,14 @@ pub fn shading_normal(scene: &SceneView, v: Variant, tri: u32, b: (f32, f32, f32
     let mut ns = flat;
     if v.has(FEATURE_VERTEX_NORMALS) & !scene.attributes.is_empty() {
         let mut n = interpolated_normal(scene, tri, b);
-        let m = &scene.materials[scene.info[tri as usize].material as usize];
-        let map = m.textures[TEXTURE_NORMAL];
-        if v.has(FEATURE_TEXTURES)
-            & !scene.textures.is_empty()
-            & (map != NO_TEXTURE)
-            & ((tri as usize) < scene.attributes.len())
-        {
-            let base = if length_squared(n) > 0.0 { normalize(n) } else { flat };
-            n = normal_mapped(scene, tri, b, base, map, m.eta.w);
+        // A normal map: only in a scene with textures (its material is looked up only then).
+        if v.has(FEATURE_TEXTURES) & !scene.textures.is_empty() & ((tri as usize) < scene.attributes.len()) {
+            let m = &scene.materials[scene.info[tri as usize].material as usize];
+            let map = m.textures[TEXTURE_NORMAL];
+            if map != NO_TEXTURE {
+                let base = if length_squared(n) > 0.0 { normalize(n) } else { flat };
+                n = normal_mapped(scene, tri, b, base, map, m.eta.w);
+            }
         }
         if length_squared(n) > 0.0 {
             let n = normalize(n);

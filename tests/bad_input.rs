@@ -563,6 +563,59 @@ fn cases() -> Vec<Case> {
             "[camera]\neye = [0, 0, 1e13]\n[[mesh]]\nfile = \"m.obj\"\n",
             &["s.toml", "camera", "5e12"],
         ),
+        // glTF: t.gltf over b.bin (three vertices, then three u16 indices).
+        case(
+            "a glTF whose buffer file is missing",
+            vec![("t.gltf", &gltf_tri("missing.bin", 3, 2, 4, ""))],
+            render("t.gltf"),
+            &["t.gltf", "buffer 0", "missing.bin"],
+        ),
+        gltf_case("a glTF accessor beyond its buffer view", gltf_tri("b.bin", 30, 2, 4, ""), &["t.gltf", "mesh 0", "accessor 0", "beyond"]),
+        gltf_case("a glTF index beyond the vertices", gltf_tri("b.bin", 3, 7, 4, ""), &["t.gltf", "mesh 0", "index 7 out of range (3 vertices)"]),
+        gltf_case("glTF points", gltf_tri("b.bin", 3, 2, 0, ""), &["t.gltf", "mesh 0", "Points", "not supported"]),
+        gltf_case("glTF lines", gltf_tri("b.bin", 3, 2, 1, ""), &["t.gltf", "mesh 0", "Lines", "not supported"]),
+        gltf_case(
+            "a glTF requiring an extension kdtrace lacks",
+            gltf_tri("b.bin", 3, 2, 4, r#""extensionsRequired": ["KHR_draco_mesh_compression"], "#),
+            &["t.gltf", "requires", "KHR_draco_mesh_compression"],
+        ),
+        gltf_case(
+            "a glTF naming an accessor it lacks",
+            gltf_tri("b.bin", 3, 2, 4, "").replace("\"POSITION\": 0", "\"POSITION\": 9"),
+            &["t.gltf", "invalid glTF", "POSITION"],
+        ),
+        gltf_case(
+            "a glTF with broken base64",
+            gltf_tri("data:application/octet-stream;base64,@@@", 3, 2, 4, ""),
+            &["t.gltf", "buffer 0", "base64"],
+        ),
+        gltf_case("glTF that is not JSON", "{\"asset\": ".into(), &["t.gltf", "not glTF JSON"]),
+        case(
+            "a truncated GLB",
+            vec![("t.glb", "glTF\u{2}\0\0\0\u{ff}\0\0\0")],
+            render("t.glb"),
+            &["t.glb", "GLB"],
+        ),
+        case(
+            "an orthographic glTF camera",
+            vec![("t.gltf", &gltf_tri("b.bin", 3, 2, 4, "").replace("\"scenes\": [{\"nodes\": [0]}]", "\"scenes\": [{\"nodes\": [0, 1]}]").replace(
+                "\"nodes\": [{\"mesh\": 0}]",
+                "\"nodes\": [{\"mesh\": 0}, {\"camera\": 0}], \"cameras\": [{\"type\": \"orthographic\", \"orthographic\": {\"xmag\": 1, \"ymag\": 1, \"zfar\": 10, \"znear\": 0.1}}]",
+            ))],
+            [render("t.gltf"), vec!["--camera".into(), "0".into()]].concat(),
+            &["t.gltf", "camera 0", "orthographic"],
+        )
+        .with_file("b.bin", gltf_bin(2)),
+        {
+            let mut c = gltf_case(
+                "a scene file placing a broken glTF",
+                gltf_tri("b.bin", 3, 9, 4, ""),
+                &["s.toml", "t.gltf", "index 9 out of range"],
+            );
+            c.files.push(("s.toml", b"[[mesh]]\nfile = \"t.gltf\"\n".to_vec()));
+            c.args = render("s.toml");
+            c
+        },
         case(
             "ray timing with no runs",
             vec![],
@@ -570,6 +623,50 @@ fn cases() -> Vec<Case> {
             &["--repeats"],
         ),
     ]
+}
+
+/// A glTF file of one triangle over the buffer `uri` (b.bin: three f32 vertices, then three u16
+/// indices, the last `last_index`), its POSITION accessor of `count` elements, primitive `mode`,
+/// `extra` JSON members first.
+fn gltf_tri(uri: &str, count: u32, last_index: u16, mode: u32, extra: &str) -> String {
+    format!(
+        r#"{{{extra}"asset": {{"version": "2.0", "extras": {{"lastIndex": {last_index}, "x": 0}}}}, "scene": 0, "scenes": [{{"nodes": [0]}}], "nodes": [{{"mesh": 0}}],
+"meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0}}, "indices": 1, "mode": {mode}}}]}}],
+"buffers": [{{"uri": "{uri}", "byteLength": 42}}],
+"bufferViews": [{{"buffer": 0, "byteLength": 36}}, {{"buffer": 0, "byteOffset": 36, "byteLength": 6}}],
+"accessors": [{{"bufferView": 0, "componentType": 5126, "count": {count}, "type": "VEC3"}},
+              {{"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}}]}}"#
+    )
+}
+
+/// b.bin for `gltf_tri`, the last index `last`.
+fn gltf_bin(last: u16) -> Vec<u8> {
+    let mut b = Vec::new();
+    for x in [0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0] {
+        b.extend(x.to_le_bytes());
+    }
+    for i in [0u16, 1, last] {
+        b.extend(i.to_le_bytes());
+    }
+    b
+}
+
+impl Case {
+    fn with_file(mut self, name: &'static str, bytes: Vec<u8>) -> Self {
+        self.files.push((name, bytes));
+        self
+    }
+}
+
+fn gltf_case(name: &'static str, gltf: String, needles: &[&str]) -> Case {
+    // The index the file's `last_index` names is written into b.bin (see `gltf_tri`).
+    let last = gltf.split("\"lastIndex\": ").nth(1).and_then(|t| t.split(',').next()).and_then(|t| t.parse().ok());
+    Case {
+        name,
+        files: vec![("t.gltf", gltf.into_bytes()), ("b.bin", gltf_bin(last.unwrap_or(2)))],
+        args: render("t.gltf"),
+        needles: needles.iter().map(|s| s.to_string()).collect(),
+    }
 }
 
 /// Three triangles, each of zero area.

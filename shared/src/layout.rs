@@ -133,6 +133,10 @@ pub const TEXTURE_EMISSION: usize = 2;
 pub const TEXTURE_ROUGHNESS: usize = 3;
 /// Slot of the metallic weight (MTL `map_Pm`): replaces `params.z`.
 pub const TEXTURE_METALLIC: usize = 4;
+/// Slot of a tangent-space normal map (glTF `normalTexture`, linear RGB: x, y, z = 2c − 1, +y
+/// toward increasing v): it bends the shading normal (`surface::shading_normal`) in the tangent
+/// frame of the triangle's texture coordinates; `eta.w` holds its scale (x and y are scaled).
+pub const TEXTURE_NORMAL: usize = 5;
 /// Alpha below this cuts the surface out (the usual alpha-test threshold).
 pub const ALPHA_CUTOFF: f32 = 0.5;
 

@@ -16,6 +16,9 @@
 //! nothing (`consistent`): where the two disagree, light would otherwise leak through the surface
 //! (pbrt-v3 §9.1 `BSDF::f` decides reflection against transmission by the geometric normal for
 //! the same reason; this guard is the stricter form that also ends such sampled paths).
+//! A material's normal map (`TEXTURE_NORMAL`, glTF's `normalTexture`) bends the interpolated
+//! normal (or the flat one) first, in the tangent frame of the triangle's texture coordinates
+//! (`normal_mapped`); the guards then apply to the bent normal alike.
 //!
 //! Alpha: a hit whose alpha mask reads below `ALPHA_CUTOFF` at its texture coordinates does not
 //! count for any ray (camera, bounce, shadow): the traversals skip it inside their leaf test and
@@ -26,11 +29,11 @@ use crate::glam::{Vec2, Vec3};
 use crate::kdtree::Hit;
 use crate::layout::{
     Material, ALPHA_CUTOFF, NO_TEXTURE, TEXTURE_ALBEDO, TEXTURE_ALPHA, TEXTURE_EMISSION, TEXTURE_METALLIC,
-    TEXTURE_ROUGHNESS,
+    TEXTURE_NORMAL, TEXTURE_ROUGHNESS,
 };
 use crate::scene::SceneView;
 use crate::texture::sample;
-use crate::vecmath::{dot, length_squared, normalize, xyz};
+use crate::vecmath::{cross, dot, length_squared, normalize, xyz};
 
 /// Barycentric weights (b0, b1, b2) of v0, v1, v2 from a hit's unnormalised weights: the same
 /// operations as `triangle::hit_point`, so the point and its attributes agree.
@@ -84,7 +87,16 @@ pub fn interpolated_normal(scene: &SceneView, tri: u32, b: (f32, f32, f32)) -> V
 pub fn shading_normal(scene: &SceneView, v: Variant, tri: u32, b: (f32, f32, f32), flat: Vec3, wo: Vec3) -> Vec3 {
     let mut ns = flat;
     if v.has(FEATURE_VERTEX_NORMALS) & !scene.attributes.is_empty() {
-        let n = interpolated_normal(scene, tri, b);
+        let mut n = interpolated_normal(scene, tri, b);
+        // A normal map: only in a scene with textures (its material is looked up only then).
+        if v.has(FEATURE_TEXTURES) & !scene.textures.is_empty() & ((tri as usize) < scene.attributes.len()) {
+            let m = &scene.materials[scene.info[tri as usize].material as usize];
+            let map = m.textures[TEXTURE_NORMAL];
+            if map != NO_TEXTURE {
+                let base = if length_squared(n) > 0.0 { normalize(n) } else { flat };
+                n = normal_mapped(scene, tri, b, base, map, m.eta.w);
+            }
+        }
         if length_squared(n) > 0.0 {
             let n = normalize(n);
             let n = if dot(n, flat) < 0.0 { -n } else { n };
@@ -94,6 +106,44 @@ pub fn shading_normal(scene: &SceneView, v: Variant, tri: u32, b: (f32, f32, f32
         }
     }
     ns
+}
+
+/// The unit normal `n` bent by normal map `map` (slot value) of scale `scale` at weights `b` on
+/// triangle `tri`, in the tangent frame of the triangle's texture coordinates: the tangent is
+/// ∂p/∂u made perpendicular to `n`, the bitangent n × t on the side of ∂p/∂v (MikkTSpace's
+/// per-triangle frame, without its vertex averaging). `n` itself where the texture coordinates
+/// are degenerate.
+#[inline(always)]
+pub fn normal_mapped(scene: &SceneView, tri: u32, b: (f32, f32, f32), n: Vec3, map: u32, scale: f32) -> Vec3 {
+    let t = &scene.triangles[tri as usize];
+    let a = &scene.attributes[tri as usize];
+    let (e1, e2) = (xyz(t.v1) - xyz(t.v0), xyz(t.v2) - xyz(t.v0));
+    let (du1, dv1) = (a.n1.w - a.n0.w, a.uv_v.y - a.uv_v.x);
+    let (du2, dv2) = (a.n2.w - a.n0.w, a.uv_v.z - a.uv_v.x);
+    let det = du1 * dv2 - du2 * dv1;
+    let mut out = n;
+    if det != 0.0 {
+        let tangent = e1 * dv2 - e2 * dv1;
+        let bitangent = e2 * du1 - e1 * du2;
+        // The sign of det orients both; only the bitangent's side relative to n × t matters.
+        let tangent = if det < 0.0 { -tangent } else { tangent };
+        let bitangent = if det < 0.0 { -bitangent } else { bitangent };
+        let tg = tangent - n * dot(n, tangent);
+        if length_squared(tg) > 0.0 {
+            let tg = normalize(tg);
+            let side = cross(n, tg);
+            let bt = if dot(side, bitangent) < 0.0 { -side } else { side };
+            let c = sample(scene.textures, map - 1, uv_at(scene, tri, b));
+            let x = (c.x * 2.0 - 1.0) * scale;
+            let y = (c.y * 2.0 - 1.0) * scale;
+            let z = c.z * 2.0 - 1.0;
+            let bent = tg * x + bt * y + n * z;
+            if length_squared(bent) > 0.0 {
+                out = normalize(bent);
+            }
+        }
+    }
+    out
 }
 
 /// Whether direction `wi` lies on the same side of the flat normal as of the shading normal `ns`

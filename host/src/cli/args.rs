@@ -38,6 +38,10 @@ impl Device {
 pub struct ImageArgs {
     #[command(flatten)]
     pub scene: SceneSettings,
+    /// glTF scenes: the camera to render, by index or name [default: the file's first perspective
+    /// camera; none: frame the scene].
+    #[arg(long, value_name = "NAME|INDEX")]
+    pub camera: Option<String>,
     /// GPU adapter: the first whose name contains this (default: the first adapter).
     #[arg(long)]
     pub adapter: Option<String>,

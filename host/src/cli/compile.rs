@@ -20,6 +20,9 @@ pub struct CompileArgs {
     /// Print one JSON line to stdout.
     #[arg(long)]
     json: bool,
+    /// glTF scenes: the camera stored with the scene, by index or name (default: the first).
+    #[arg(long, value_name = "NAME|INDEX")]
+    camera: Option<String>,
     /// The tree's build settings (defaults: the CPU's tree, `kdbuild::BuildSettings`).
     #[command(flatten)]
     build: BuildArgs,
@@ -45,7 +48,7 @@ pub fn run(a: CompileArgs) -> Result<ExitCode> {
     }
     files::check_outputs(&[&a.out], &[&a.scene])?;
     let build = a.build.settings()?;
-    let loaded = load(&a.scene, build)?;
+    let loaded = load(&a.scene, build, a.camera.as_deref())?;
     let t = Instant::now();
     kdc::write(&a.out, &loaded.compiled, &build, &loaded.settings)?;
     let write_s = t.elapsed().as_secs_f64();

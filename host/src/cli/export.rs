@@ -1,4 +1,4 @@
-//! `kdtrace export`: a scene (.obj or .toml) as a TOML scene file that states every setting.
+//! `kdtrace export`: a scene (.obj, .gltf, .glb or .toml) as a TOML scene file that states every setting.
 use super::load;
 use crate::files;
 use crate::kdbuild::BuildSettings;
@@ -16,6 +16,9 @@ pub struct ExportArgs {
     /// The TOML scene file to write (mesh paths are written relative to it).
     #[arg(long)]
     out: PathBuf,
+    /// glTF scenes: the camera the scene file states, by index or name (default: the first).
+    #[arg(long, value_name = "NAME|INDEX")]
+    camera: Option<String>,
 }
 
 pub fn run(e: ExportArgs) -> Result<ExitCode> {
@@ -28,7 +31,7 @@ pub fn run(e: ExportArgs) -> Result<ExitCode> {
             "{}: a compiled scene keeps no mesh files and cannot be exported; export the scene it was compiled from",
             e.scene.display()
         ),
-        SceneKind::Obj => file::for_obj(&e.scene),
+        SceneKind::Obj | SceneKind::Gltf => file::for_obj(&e.scene),
         SceneKind::Toml => {
             let bytes = files::read_input(&e.scene, files::MAX_TEXT_BYTES)
                 .map_err(|err| anyhow!("{}: cannot read: {err}", e.scene.display()))?;
@@ -38,7 +41,7 @@ pub fn run(e: ExportArgs) -> Result<ExitCode> {
         }
     };
     // Loading checks every mesh and resolves the camera framing that the file may leave open.
-    let loaded = load(&e.scene, BuildSettings::default())?;
+    let loaded = load(&e.scene, BuildSettings::default(), e.camera.as_deref())?;
     let c = &loaded.compiled;
     let (lo, hi) = c.world_bounds();
     let resolved = loaded.settings.resolve(lo, hi)?;

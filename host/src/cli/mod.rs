@@ -98,7 +98,17 @@ fn print_json(report: &impl serde::Serialize) -> Result<()> {
 fn settings(a: &ImageArgs, loaded: &Loaded, scene: &Path) -> Result<RenderSettings> {
     let (lo, hi) = loaded.compiled.world_bounds();
     let context = || format!("{} with the command line's settings", scene.display());
-    let mut s = loaded.settings.overridden_by(&a.scene).resolve(lo, hi).with_context(context)?;
+    // A glTF camera's aspect ratio holds when the command line gives one side only.
+    let mut flags = a.scene.clone();
+    if let Some(aspect) = loaded.aspect {
+        let side = |x: f64| x.round().clamp(1.0, crate::settings::MAX_SIDE as f64) as u32;
+        match (flags.width, flags.height) {
+            (Some(w), None) => flags.height = Some(side(w as f64 / aspect)),
+            (None, Some(h)) => flags.width = Some(side(h as f64 * aspect)),
+            _ => {}
+        }
+    }
+    let mut s = loaded.settings.overridden_by(&flags).resolve(lo, hi).with_context(context)?;
     // The camera placed against the scene (its distance in the local frame), before any work.
     loaded.compiled.params(&s, 0, 1).with_context(context)?;
     s.traversal = a.traversal;
@@ -112,8 +122,8 @@ fn settings(a: &ImageArgs, loaded: &Loaded, scene: &Path) -> Result<RenderSettin
 
 /// Loads a scene, building its tree (unless stored) with `build`, and reports its warnings on
 /// stderr.
-pub(crate) fn load(path: &Path, build: kdbuild::BuildSettings) -> Result<Loaded> {
-    let loaded = crate::load(path, build)?;
+pub(crate) fn load(path: &Path, build: kdbuild::BuildSettings, camera: Option<&str>) -> Result<Loaded> {
+    let loaded = crate::render::load::load_with_camera(path, build, camera)?;
     for w in &loaded.warnings {
         eprintln!("warning: {w}");
     }

@@ -44,7 +44,7 @@ pub fn run(r: RaysArgs) -> Result<ExitCode> {
         bail!("--repeats must be at least 1");
     }
     let build = r.device.build_settings();
-    let loaded = load(&r.scene, build)?;
+    let loaded = load(&r.scene, build, r.image.camera.as_deref())?;
     let c = &loaded.compiled;
     let s = settings(&r.image, &loaded, &r.scene)?;
     let g = match r.device {

@@ -32,7 +32,7 @@ struct VerifyReport<'a> {
 
 pub fn run(v: VerifyArgs) -> Result<ExitCode> {
     // One tree for both devices (the CPU's), so any difference is the devices', not the trees'.
-    let loaded = load(&v.scene, Device::Cpu.build_settings())?;
+    let loaded = load(&v.scene, Device::Cpu.build_settings(), v.image.camera.as_deref())?;
     let c = &loaded.compiled;
     let mut s = settings(&v.image, &loaded, &v.scene)?;
     if s.time_limit_s.take().is_some() {

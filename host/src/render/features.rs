@@ -120,8 +120,10 @@ pub fn analyse(c: &Compiled, s: &RenderSettings) -> Features {
     let textures =
         used.iter().any(|m| m.textures.iter().enumerate().any(|(slot, &t)| slot != TEXTURE_ALPHA && t != NO_TEXTURE));
     let alpha_masks = uses_alpha_masks(scene);
-    let vertex_normals =
-        scene.attributes.iter().any(|a| [a.n0, a.n1, a.n2].iter().any(|n| n.truncate() != shared::glam::Vec3::ZERO));
+    // A normal map bends the shading normal as vertex normals do (`surface::shading_normal`).
+    let vertex_normals = (!scene.attributes.is_empty()
+        && used.iter().any(|m| m.textures[shared::layout::TEXTURE_NORMAL] != NO_TEXTURE))
+        || scene.attributes.iter().any(|a| [a.n0, a.n1, a.n2].iter().any(|n| n.truncate() != shared::glam::Vec3::ZERO));
     // (Every emissive triangle is in the light table: `emitters` counts them all.) A render
     // without indirect bounces still follows the BSDF sample to an emitter (MIS), so the bounce
     // limit does not enter.

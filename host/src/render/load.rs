@@ -1,10 +1,11 @@
-//! Loading a scene by its extension: an OBJ or a TOML scene file is read, placed in f64, moved to
-//! its local frame, rounded to f32 once and its k-d tree built; a `.kdc` is read as compiled.
+//! Loading a scene by its extension: an OBJ, a glTF (`.gltf`, `.glb`) or a TOML scene file is
+//! read, placed in f64, moved to its local frame, rounded to f32 once and its k-d tree built; a
+//! `.kdc` is read as compiled.
 use super::kdc;
 use crate::files;
 use crate::kdbuild::{self, BuildSettings};
 use crate::render::Compiled;
-use crate::scene::{file, obj, Scene};
+use crate::scene::{file, gltf_file, obj, Scene};
 use crate::settings::SceneSettings;
 use anyhow::{bail, Result};
 use shared::numerics::{MAX_EXTENT, MIN_EXTENT};
@@ -18,6 +19,9 @@ pub struct Loaded {
     pub settings: SceneSettings,
     /// Problems that did not stop the load (missing MTL, dropped degenerate geometry, …).
     pub warnings: Vec<String>,
+    /// A glTF camera's aspect ratio (width / height): a `--width` or `--height` given alone keeps
+    /// it (`cli::settings`).
+    pub aspect: Option<f64>,
     pub kind: SceneKind,
     /// Reading and parsing (for a `.kdc`: reading, checking and validating everything).
     pub load_s: f64,
@@ -32,6 +36,7 @@ pub struct Loaded {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum SceneKind {
     Obj,
+    Gltf,
     Toml,
     Kdc,
 }
@@ -41,9 +46,10 @@ impl SceneKind {
         let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
         Ok(match ext.as_deref() {
             Some("obj") => SceneKind::Obj,
+            Some("gltf" | "glb") => SceneKind::Gltf,
             Some("toml") => SceneKind::Toml,
             Some("kdc") => SceneKind::Kdc,
-            _ => bail!("{}: unknown scene type (expected .obj, .toml or .kdc)", path.display()),
+            _ => bail!("{}: unknown scene type (expected .obj, .gltf, .glb, .toml or .kdc)", path.display()),
         })
     }
 }
@@ -52,8 +58,18 @@ impl SceneKind {
 /// with `settings`; a `.kdc` is read as compiled (its tree was built with the settings stored in
 /// it, and `settings` is not used).
 pub fn load(path: &Path, settings: BuildSettings) -> Result<Loaded> {
+    load_with_camera(path, settings, None)
+}
+
+/// `load`, with a glTF scene's camera chosen by its index or name (`--camera`; default: its first
+/// perspective camera). A camera choice for any other kind of scene is an error.
+pub fn load_with_camera(path: &Path, settings: BuildSettings, camera: Option<&str>) -> Result<Loaded> {
     let t0 = Instant::now();
     let kind = SceneKind::of(path)?;
+    if camera.is_some() && kind != SceneKind::Gltf {
+        bail!("{}: --camera chooses a glTF file's camera; this scene is not a .gltf or .glb file", path.display());
+    }
+    let mut aspect = None;
     let (scene, scene_settings, mut warnings) = match kind {
         SceneKind::Kdc => {
             let k = kdc::read(path)?;
@@ -64,6 +80,7 @@ pub fn load(path: &Path, settings: BuildSettings) -> Result<Loaded> {
                 compiled: k.compiled,
                 settings: k.settings,
                 warnings: Vec::new(),
+                aspect: None,
                 kind,
                 load_s: t0.elapsed().as_secs_f64(),
                 build_s: 0.0,
@@ -73,6 +90,14 @@ pub fn load(path: &Path, settings: BuildSettings) -> Result<Loaded> {
         SceneKind::Obj => {
             let mesh = obj::load_mesh(path, &files::Disk)?;
             (mesh.scene, SceneSettings::default(), mesh.warnings)
+        }
+        SceneKind::Gltf => {
+            let g = gltf_file::load(path, &files::Disk)?;
+            let (camera_settings, camera_aspect, camera_warnings) = g.camera_settings(path, camera)?;
+            aspect = camera_aspect;
+            let mut warnings = g.mesh.warnings;
+            warnings.extend(camera_warnings);
+            (g.mesh.scene, camera_settings, warnings)
         }
         SceneKind::Toml => {
             let r = file::load(path, &files::Disk)?;
@@ -101,7 +126,7 @@ pub fn load(path: &Path, settings: BuildSettings) -> Result<Loaded> {
     let mut compiled = Compiled::new(scene, tree);
     compiled.origin = origin;
     let prepare_s = t2.elapsed().as_secs_f64();
-    Ok(Loaded { compiled, settings: scene_settings, warnings, kind, load_s, build_s, prepare_s })
+    Ok(Loaded { compiled, settings: scene_settings, warnings, aspect, kind, load_s, build_s, prepare_s })
 }
 
 /// The scene's box in its local frame against the range the renderer computes correctly

@@ -13,7 +13,7 @@ use material::scene_material;
 pub use material::{Alpha, Ior, MaterialKind, MaterialSection, RawMaterial, Unit, DEFAULT_IOR};
 
 use crate::files::Files;
-use crate::scene::obj::{self, MAX_COORDINATE};
+use crate::scene::obj::MAX_COORDINATE;
 use crate::scene::texture::{Kind, TextureSet};
 use crate::scene::transform::Placement;
 use crate::scene::{WorldAttributes, WorldScene};
@@ -432,7 +432,7 @@ pub fn resolve(path: &Path, text: &str, file: &SceneFile, files: &dyn Files) -> 
     let mut warnings = Vec::new();
     for m in &file.meshes {
         let mesh_path = dir.join(m.file.get_ref());
-        let mesh = obj::load_mesh(&mesh_path, files)
+        let mesh = crate::scene::gltf_file::load_any_mesh(&mesh_path, files)
             .with_context(|| format!("{}: mesh {:?}", at(m.file.span()), m.file.get_ref()))?;
         let whole = m.material.as_ref().map(&lookup).transpose()?;
         let mut by_name = BTreeMap::new();

@@ -7,6 +7,7 @@
 //! vertex normals and texture coordinates) and textures (`texture`) travel with the triangles.
 pub mod coating;
 pub mod file;
+pub mod gltf_file;
 pub mod local_frame;
 pub mod obj;
 pub mod procedural;

@@ -14,7 +14,7 @@
 //! file's key); nothing here panics on a bad file.
 use crate::files::Files;
 use anyhow::{anyhow, bail, Result};
-use shared::layout::{TextureInfo, TEXTURE_ONE_CHANNEL};
+use shared::layout::{TextureInfo, TEXTURE_CLAMP, TEXTURE_ONE_CHANNEL};
 use shared::texture::INFO_WORDS;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -29,6 +29,21 @@ pub enum Kind {
     /// A linear alpha mask: the alpha channel, or the first channel of an image without one (or
     /// whose alpha is opaque everywhere).
     Alpha,
+    /// glTF: sRGB colour times a linear factor per channel (the bits of three f32s: a
+    /// baseColorFactor, an emissiveFactor × strength), RGBA (alpha as read).
+    ColourTimes([u32; 3]),
+    /// glTF: linear RGBA as stored (a normal map).
+    Linear,
+    /// glTF: linear channel `c` (0 = R … 3 = A; an image without alpha reads 1 there) times a
+    /// factor (the bits of an f32): metallic (B), roughness (G), an alpha mask (A).
+    ChannelTimes(u8, u32),
+}
+
+impl Kind {
+    /// Four halves a texel (RGBA) rather than one.
+    pub fn is_colour(self) -> bool {
+        matches!(self, Kind::Colour | Kind::ColourTimes(_) | Kind::Linear)
+    }
 }
 
 /// A decoded texture: linear values as half floats, four per texel (colour) or one (data), rows
@@ -40,13 +55,15 @@ pub struct Texture {
     pub width: u32,
     pub height: u32,
     pub kind: Kind,
+    /// Clamp addressing (`TEXTURE_CLAMP`) rather than repeat.
+    pub clamp: bool,
     pub halves: Vec<u16>,
 }
 
 impl Texture {
     /// The mean linear RGB over all texels (a data texture's value in all three).
     pub fn mean_rgb(&self) -> [f32; 3] {
-        let per = if self.kind == Kind::Colour { 4 } else { 1 };
+        let per = if self.kind.is_colour() { 4 } else { 1 };
         let mut sum = [0f64; 3];
         for texel in self.halves.chunks(per) {
             for (c, s) in sum.iter_mut().enumerate() {
@@ -85,7 +102,7 @@ pub fn decode(source: &Path, bytes: &[u8], kind: Kind) -> Result<Texture> {
     let has_alpha = rgba.pixels().any(|p| p.0[3] != u16::MAX);
     let unit = |v: u16| v as f64 / 65535.0;
     let half = |x: f64| half::f16::from_f64(x).to_bits();
-    let halves = match kind {
+    let halves: Vec<u16> = match kind {
         Kind::Colour => rgba
             .pixels()
             .flat_map(|p| {
@@ -100,8 +117,30 @@ pub fn decode(source: &Path, bytes: &[u8], kind: Kind) -> Result<Texture> {
             .collect(),
         Kind::Value => rgba.pixels().map(|p| half(unit(p.0[0]))).collect(),
         Kind::Alpha => rgba.pixels().map(|p| half(unit(if has_alpha { p.0[3] } else { p.0[0] }))).collect(),
+        Kind::ColourTimes(f) => {
+            let f = f.map(|b| f32::from_bits(b) as f64);
+            rgba.pixels()
+                .flat_map(|p| {
+                    let [r, g, b, a] = p.0;
+                    [
+                        half(srgb_to_linear(unit(r)) * f[0]),
+                        half(srgb_to_linear(unit(g)) * f[1]),
+                        half(srgb_to_linear(unit(b)) * f[2]),
+                        half(unit(a)),
+                    ]
+                })
+                .collect()
+        }
+        Kind::Linear => rgba.pixels().flat_map(|p| p.0.map(|v| half(unit(v)))).collect(),
+        Kind::ChannelTimes(c, f) => {
+            let (c, f) = ((c as usize).min(3), f32::from_bits(f) as f64);
+            rgba.pixels().map(|p| half(unit(p.0[c]) * f)).collect()
+        }
     };
-    Ok(Texture { source: source.to_path_buf(), width, height, kind, halves })
+    if halves.iter().any(|&h| !half::f16::from_bits(h).is_finite()) {
+        bail!("{}: texel values beyond a half float's range once scaled", source.display());
+    }
+    Ok(Texture { source: source.to_path_buf(), width, height, kind, clamp: false, halves })
 }
 
 /// The texture buffer: the table (`TextureInfo`, four words each), then each texture's texels
@@ -110,9 +149,9 @@ pub fn pack(textures: &[Texture]) -> Result<Vec<u32>> {
     let mut words: Vec<u32> = vec![0; textures.len() * INFO_WORDS as usize];
     for (i, t) in textures.iter().enumerate() {
         let offset = u32::try_from(words.len()).map_err(|_| anyhow!("textures: more than 16 GiB in all"))?;
-        let one = t.kind != Kind::Colour;
-        let info =
-            TextureInfo { offset, width: t.width, height: t.height, flags: if one { TEXTURE_ONE_CHANNEL } else { 0 } };
+        let one = !t.kind.is_colour();
+        let flags = if one { TEXTURE_ONE_CHANNEL } else { 0 } | if t.clamp { TEXTURE_CLAMP } else { 0 };
+        let info = TextureInfo { offset, width: t.width, height: t.height, flags };
         words[i * 4..i * 4 + 4].copy_from_slice(&[info.offset, info.width, info.height, info.flags]);
         for pair in t.halves.chunks(2) {
             words.push(pair[0] as u32 | (pair.get(1).copied().unwrap_or(0) as u32) << 16);
@@ -163,7 +202,7 @@ pub fn check_packed(words: &[u32], count: usize) -> Result<()> {
 #[derive(Clone, Debug, Default)]
 pub struct TextureSet {
     pub textures: Vec<Texture>,
-    index: HashMap<(PathBuf, Kind), u32>,
+    index: HashMap<(PathBuf, Kind, bool), u32>,
 }
 
 impl TextureSet {
@@ -171,15 +210,34 @@ impl TextureSet {
     /// read as `kind`, decoding it on first use. `wanted_by` names what asked for it (a file and
     /// line and key) for messages.
     pub fn load(&mut self, files: &dyn Files, path: &Path, kind: Kind, wanted_by: &str) -> Result<u32> {
-        if let Some(&i) = self.index.get(&(path.to_path_buf(), kind)) {
+        if let Some(&i) = self.index.get(&(path.to_path_buf(), kind, false)) {
             return Ok(i + 1);
         }
         let bytes =
             files.read(path).map_err(|e| anyhow!("{wanted_by}: texture {}: cannot read: {e}", path.display()))?;
-        let texture = decode(path, &bytes, kind).map_err(|e| anyhow!("{wanted_by}: texture {e}"))?;
+        self.load_bytes(path, || Ok(bytes), kind, false, wanted_by)
+    }
+
+    /// `load` for an image whose bytes `bytes` gives (read only on first use), known by the name
+    /// `source` (a file, or a glTF file's embedded image), with clamp or repeat addressing.
+    pub fn load_bytes(
+        &mut self,
+        source: &Path,
+        bytes: impl FnOnce() -> Result<Vec<u8>>,
+        kind: Kind,
+        clamp: bool,
+        wanted_by: &str,
+    ) -> Result<u32> {
+        let key = (source.to_path_buf(), kind, clamp);
+        if let Some(&i) = self.index.get(&key) {
+            return Ok(i + 1);
+        }
+        let bytes = bytes()?;
+        let mut texture = decode(source, &bytes, kind).map_err(|e| anyhow!("{wanted_by}: texture {e}"))?;
+        texture.clamp = clamp;
         let i = self.textures.len() as u32;
         self.textures.push(texture);
-        self.index.insert((path.to_path_buf(), kind), i);
+        self.index.insert(key, i);
         Ok(i + 1)
     }
 
@@ -232,6 +290,7 @@ mod tests {
             width: w,
             height: h,
             kind,
+            clamp: false,
             halves: vec![0x3c00; (w * h * if kind == Kind::Colour { 4 } else { 1 }) as usize],
         };
         let words = pack(&[t(2, 1, Kind::Colour), t(3, 1, Kind::Value)]).unwrap();

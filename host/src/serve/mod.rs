@@ -181,7 +181,7 @@ async fn status(AxumState(state): AxumState<Arc<State>>) -> impl IntoResponse {
 
 /// Loads one scene for the CPU and describes it for the page.
 fn load_scene(index: usize, path: &Path) -> Result<SceneEntry> {
-    let cpu = crate::cli::load(path, BuildSettings::default())?;
+    let cpu = crate::cli::load(path, BuildSettings::default(), None)?;
     let c = &cpu.compiled;
     let (lo, hi) = c.world_bounds();
     let s = cpu.settings.resolve(lo, hi).with_context(|| path.display().to_string())?;

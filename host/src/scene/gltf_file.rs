@@ -1,0 +1,996 @@
+//! glTF 2.0 (`.gltf` with its buffers and images, data URIs included, and `.glb`) through the
+//! `gltf` crate: the default scene's node hierarchy with every transform composed in f64, its
+//! meshes (triangles, strips and fans), vertex normals and TEXCOORD_0, the metallic-roughness
+//! materials as `principled` ones, perspective cameras and (parsed, not yet rendered)
+//! KHR_lights_punctual lights.
+//!
+//! Node transforms are read from the JSON text as f64 (the `gltf` crate reads them as f32), so a
+//! node at survey coordinates keeps its digits until the scene is moved to its local frame, as an
+//! OBJ's vertices do. Accessors are read here, not through the crate's reader: every count, offset
+//! and stride is checked against its buffer, and every index against its vertices, so a broken
+//! file is an error naming the file, mesh and primitive, never a panic.
+//!
+//! Texture coordinates: glTF's v runs top to bottom (image row 0 at v = 0); `shared::texture`
+//! reads v bottom to top (OBJ's `vt`), so v becomes 1 − v once the KHR_texture_transform of the
+//! material, if any, has been applied in glTF's own frame.
+use crate::files::Files;
+use crate::scene::obj::{Mesh, MAX_COORDINATE};
+use crate::scene::texture::{Kind, TextureSet};
+use crate::scene::{principled, Principled, WorldAttributes, WorldScene};
+use crate::settings::SceneSettings;
+use ::gltf::mesh::Mode;
+use anyhow::{anyhow, bail, Result};
+use base64::Engine;
+use shared::glam::{DMat3, DMat4, DQuat, DVec3, Vec3};
+use shared::layout::{
+    Material, ALPHA_CUTOFF, NO_TEXTURE, TEXTURE_ALBEDO, TEXTURE_ALPHA, TEXTURE_EMISSION, TEXTURE_METALLIC,
+    TEXTURE_NORMAL, TEXTURE_ROUGHNESS,
+};
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+
+/// Extensions whose effect is rendered.
+pub const SUPPORTED_EXTENSIONS: [&str; 4] =
+    ["KHR_texture_transform", "KHR_materials_emissive_strength", "KHR_materials_transmission", "KHR_materials_ior"];
+
+/// A camera placed by a node, in world coordinates.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GltfCamera {
+    /// The camera's index in the file's `cameras`.
+    pub index: usize,
+    pub name: Option<String>,
+    pub eye: DVec3,
+    pub target: DVec3,
+    pub up: DVec3,
+    /// Vertical field of view in degrees; `None` for an orthographic camera.
+    pub fov_deg: Option<f64>,
+    pub aspect: Option<f64>,
+}
+
+impl GltfCamera {
+    fn label(&self) -> String {
+        match &self.name {
+            Some(n) => format!("camera {} ({n:?})", self.index),
+            None => format!("camera {}", self.index),
+        }
+    }
+}
+
+/// A KHR_lights_punctual light placed by a node (world coordinates), for the light support to
+/// come: position, the direction it points (−Z of its node), colour, intensity (candela for
+/// point and spot lights, lux for directional ones), range and the spot cone angles.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GltfLight {
+    pub name: Option<String>,
+    /// "directional", "point" or "spot".
+    pub kind: &'static str,
+    pub position: DVec3,
+    pub direction: DVec3,
+    pub color: [f32; 3],
+    pub intensity: f32,
+    pub range: Option<f32>,
+    pub inner_cone: f32,
+    pub outer_cone: f32,
+}
+
+/// A glTF file read: its triangles and materials (as an OBJ's), cameras and lights.
+#[derive(Clone, Debug)]
+pub struct GltfScene {
+    pub mesh: Mesh,
+    pub cameras: Vec<GltfCamera>,
+    pub lights: Vec<GltfLight>,
+}
+
+impl GltfScene {
+    /// The render settings of camera `choice` (its index, or its name), or of the first
+    /// perspective camera when there is no choice (none at all: the framing default), with the
+    /// camera's aspect ratio where it gives one. An orthographic camera is an error naming it.
+    pub fn camera_settings(
+        &self,
+        path: &Path,
+        choice: Option<&str>,
+    ) -> Result<(SceneSettings, Option<f64>, Vec<String>)> {
+        let mut warnings = Vec::new();
+        let camera = match choice {
+            Some(c) => {
+                let by_index = c.parse::<usize>().ok();
+                let found = self
+                    .cameras
+                    .iter()
+                    .find(|k| Some(k.index) == by_index)
+                    .or_else(|| self.cameras.iter().find(|k| k.name.as_deref() == Some(c)));
+                let Some(found) = found else {
+                    let known: Vec<String> = self.cameras.iter().map(GltfCamera::label).collect();
+                    bail!(
+                        "{}: no camera {c:?} placed in the scene (cameras: {})",
+                        path.display(),
+                        if known.is_empty() { "none".into() } else { known.join(", ") }
+                    );
+                };
+                if found.fov_deg.is_none() {
+                    bail!(
+                        "{}: {} is orthographic; kdtrace renders perspective cameras only",
+                        path.display(),
+                        found.label()
+                    );
+                }
+                Some(found)
+            }
+            None => {
+                let first = self.cameras.iter().find(|k| k.fov_deg.is_some());
+                if first.is_none() && !self.cameras.is_empty() {
+                    warnings.push(format!(
+                        "{}: only orthographic cameras ({}), which kdtrace does not render; the default framing is used",
+                        path.display(),
+                        self.cameras.iter().map(GltfCamera::label).collect::<Vec<_>>().join(", ")
+                    ));
+                }
+                first
+            }
+        };
+        let mut s = SceneSettings::default();
+        if let Some(c) = camera {
+            s.eye = Some(c.eye.to_array());
+            s.target = Some(c.target.to_array());
+            s.up = Some(c.up.to_array());
+            s.fov_deg = c.fov_deg.map(|f| f as f32);
+            if let Some(a) = c.aspect {
+                let (w, h) = if a >= 1.0 {
+                    (
+                        crate::settings::DEFAULT_WIDTH,
+                        (crate::settings::DEFAULT_WIDTH as f64 / a).round().max(1.0) as u32,
+                    )
+                } else {
+                    (
+                        (crate::settings::DEFAULT_HEIGHT as f64 * a).round().max(1.0) as u32,
+                        crate::settings::DEFAULT_HEIGHT,
+                    )
+                };
+                s.width = Some(w);
+                s.height = Some(h);
+            }
+        }
+        Ok((s, camera.and_then(|c| c.aspect), warnings))
+    }
+}
+
+/// Reads a glTF file (`.gltf` or `.glb`), its buffers and images, through `files`.
+pub fn load(path: &Path, files: &dyn Files) -> Result<GltfScene> {
+    let bytes = files.read(path).map_err(|e| anyhow!("{}: cannot read: {e}", path.display()))?;
+    parse(path, &bytes, files)
+}
+
+/// Reads a buffer or image URI: a base64 data URI, or a file relative to the glTF file.
+fn read_uri(path: &Path, uri: &str, files: &dyn Files, what: &str) -> Result<Vec<u8>> {
+    if let Some(rest) = uri.strip_prefix("data:") {
+        let Some((header, data)) = rest.split_once(',') else {
+            bail!("{}: {what}: malformed data URI (no comma)", path.display());
+        };
+        if !header.ends_with(";base64") {
+            bail!("{}: {what}: data URI is not base64", path.display());
+        }
+        return base64::engine::general_purpose::STANDARD
+            .decode(data.trim())
+            .map_err(|e| anyhow!("{}: {what}: bad base64 in data URI: {e}", path.display()));
+    }
+    let name = percent_decode(uri);
+    let full = path.parent().unwrap_or(Path::new("")).join(&name);
+    files.read(&full).map_err(|e| anyhow!("{}: {what} {uri:?}: cannot read {}: {e}", path.display(), full.display()))
+}
+
+/// `%XX` escapes of a relative URI decoded (the file names glTF exporters write).
+fn percent_decode(uri: &str) -> String {
+    let b = uri.as_bytes();
+    let mut out = Vec::with_capacity(b.len());
+    let mut i = 0;
+    while i < b.len() {
+        if b[i] == b'%' && i + 2 < b.len() {
+            if let Some(v) = std::str::from_utf8(&b[i + 1..i + 3]).ok().and_then(|h| u8::from_str_radix(h, 16).ok()) {
+                out.push(v);
+                i += 3;
+                continue;
+            }
+        }
+        out.push(b[i]);
+        i += 1;
+    }
+    String::from_utf8_lossy(&out).into_owned()
+}
+
+/// The local transform of node `i` from the JSON, in f64 (matrix, or T·R·S).
+fn node_matrix(path: &Path, json: &serde_json::Value, i: usize) -> Result<DMat4> {
+    let node = &json["nodes"][i];
+    let numbers = |key: &str, n: usize| -> Result<Option<Vec<f64>>> {
+        let Some(v) = node.get(key) else { return Ok(None) };
+        let a = v
+            .as_array()
+            .filter(|a| a.len() == n)
+            .ok_or_else(|| anyhow!("{}: node {i}: {key} needs {n} numbers", path.display()))?;
+        let mut out = Vec::with_capacity(n);
+        for x in a {
+            match x.as_f64() {
+                Some(x) if x.is_finite() && x.abs() <= MAX_COORDINATE as f64 => out.push(x),
+                _ => {
+                    bail!("{}: node {i}: {key}: {x} is not a finite number within ±{MAX_COORDINATE:e}", path.display())
+                }
+            }
+        }
+        Ok(Some(out))
+    };
+    if let Some(m) = numbers("matrix", 16)? {
+        return Ok(DMat4::from_cols_slice(&m));
+    }
+    let t = numbers("translation", 3)?.map_or(DVec3::ZERO, |v| DVec3::new(v[0], v[1], v[2]));
+    let s = numbers("scale", 3)?.map_or(DVec3::ONE, |v| DVec3::new(v[0], v[1], v[2]));
+    let r = match numbers("rotation", 4)? {
+        Some(q) => {
+            let q = DQuat::from_xyzw(q[0], q[1], q[2], q[3]);
+            if q.length() == 0.0 {
+                bail!("{}: node {i}: rotation is the zero quaternion", path.display());
+            }
+            q.normalize()
+        }
+        None => DQuat::IDENTITY,
+    };
+    Ok(DMat4::from_scale_rotation_translation(s, r, t))
+}
+
+/// The most elements an accessor without a buffer view (all zeros, or sparse) may have.
+const MAX_ZERO_ELEMENTS: usize = 1 << 26;
+
+/// An accessor's elements as f64, `components` per element (normalised integers scaled as the
+/// specification says), after checking it against its buffer view and buffer.
+fn read_accessor(
+    buffers: &[Vec<u8>],
+    a: &::gltf::Accessor,
+    components: usize,
+    what: &str,
+) -> std::result::Result<Vec<f64>, String> {
+    use ::gltf::accessor::DataType;
+    if a.dimensions().multiplicity() != components {
+        return Err(format!(
+            "{what}: accessor {} has {:?} elements, not {components} components",
+            a.index(),
+            a.dimensions()
+        ));
+    }
+    let size = a.data_type().size();
+    let elem = size * components;
+    let count = a.count();
+    let decode = |bytes: &[u8]| -> f64 {
+        match a.data_type() {
+            DataType::F32 => f32::from_le_bytes(bytes[..4].try_into().unwrap()) as f64,
+            DataType::U32 => u32::from_le_bytes(bytes[..4].try_into().unwrap()) as f64,
+            DataType::U16 => {
+                let v = u16::from_le_bytes(bytes[..2].try_into().unwrap()) as f64;
+                if a.normalized() {
+                    v / 65535.0
+                } else {
+                    v
+                }
+            }
+            DataType::U8 => {
+                let v = bytes[0] as f64;
+                if a.normalized() {
+                    v / 255.0
+                } else {
+                    v
+                }
+            }
+            DataType::I16 => {
+                let v = i16::from_le_bytes(bytes[..2].try_into().unwrap()) as f64;
+                if a.normalized() {
+                    (v / 32767.0).max(-1.0)
+                } else {
+                    v
+                }
+            }
+            DataType::I8 => {
+                let v = bytes[0] as i8 as f64;
+                if a.normalized() {
+                    (v / 127.0).max(-1.0)
+                } else {
+                    v
+                }
+            }
+        }
+    };
+    // The bytes of a view, checked against its buffer.
+    let view_bytes = |view: &::gltf::buffer::View| -> std::result::Result<&[u8], String> {
+        let buffer = buffers
+            .get(view.buffer().index())
+            .ok_or_else(|| format!("{what}: buffer {} missing", view.buffer().index()))?;
+        let end = view.offset().checked_add(view.length()).filter(|&e| e <= buffer.len()).ok_or_else(|| {
+            format!(
+                "{what}: buffer view {} (bytes {}..+{}) lies outside buffer {} ({} bytes)",
+                view.index(),
+                view.offset(),
+                view.length(),
+                view.buffer().index(),
+                buffer.len()
+            )
+        })?;
+        Ok(&buffer[view.offset()..end])
+    };
+    // `n` elements of `elem` bytes starting at `offset` within `bytes` every `stride`.
+    let elements =
+        |bytes: &[u8], offset: usize, stride: usize, n: usize, elem: usize| -> std::result::Result<(), String> {
+            if n == 0 {
+                return Ok(());
+            }
+            let end = (n - 1).checked_mul(stride).and_then(|x| x.checked_add(offset)).and_then(|x| x.checked_add(elem));
+            match end {
+                Some(e) if e <= bytes.len() => Ok(()),
+                _ => Err(format!(
+                "{what}: accessor {} needs {n} elements of {elem} bytes every {stride} from byte {offset}, beyond its \
+                 buffer view ({} bytes)",
+                a.index(),
+                bytes.len()
+            )),
+            }
+        };
+    // Checked before anything is allocated: a count the buffer cannot hold is an error.
+    let base = match a.view() {
+        Some(view) => {
+            let bytes = view_bytes(&view)?;
+            let stride = view.stride().unwrap_or(elem);
+            if stride < elem {
+                return Err(format!(
+                    "{what}: accessor {}: byteStride {stride} is below its element size {elem}",
+                    a.index()
+                ));
+            }
+            elements(bytes, a.offset(), stride, count, elem)?;
+            Some((bytes, stride))
+        }
+        None if count > MAX_ZERO_ELEMENTS => {
+            return Err(format!(
+                "{what}: accessor {} has no buffer view and {count} elements (at most {MAX_ZERO_ELEMENTS})",
+                a.index()
+            ))
+        }
+        None => None,
+    };
+    let mut out = vec![0.0; count.checked_mul(components).ok_or_else(|| format!("{what}: accessor count overflows"))?];
+    if let Some((bytes, stride)) = base {
+        for (i, e) in out.chunks_mut(components).enumerate() {
+            let at = a.offset() + i * stride;
+            for (c, x) in e.iter_mut().enumerate() {
+                *x = decode(&bytes[at + c * size..]);
+            }
+        }
+    }
+    if let Some(sparse) = a.sparse() {
+        let n = sparse.count();
+        let (iv, vv) = (sparse.indices(), sparse.values());
+        let ib = view_bytes(&iv.view())?;
+        let isize = iv.index_type().size();
+        elements(ib, iv.offset(), isize, n, isize)?;
+        let vb = view_bytes(&vv.view())?;
+        elements(vb, vv.offset(), elem, n, elem)?;
+        for k in 0..n {
+            let at = iv.offset() + k * isize;
+            let i = match isize {
+                1 => ib[at] as usize,
+                2 => u16::from_le_bytes([ib[at], ib[at + 1]]) as usize,
+                _ => u32::from_le_bytes(ib[at..at + 4].try_into().unwrap()) as usize,
+            };
+            if i >= count {
+                return Err(format!("{what}: accessor {}: sparse index {i} beyond its {count} elements", a.index()));
+            }
+            for c in 0..components {
+                out[i * components + c] = decode(&vb[vv.offset() + k * elem + c * size..]);
+            }
+        }
+    }
+    if out.iter().any(|x| !x.is_finite()) {
+        return Err(format!("{what}: accessor {} holds a value that is not finite", a.index()));
+    }
+    Ok(out)
+}
+
+/// The 3×3 matrix of a KHR_texture_transform (T·R·S, glTF's texture frame) as (a, b, c; d, e, f).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct UvTransform([f64; 6]);
+
+impl UvTransform {
+    const IDENTITY: Self = Self([1.0, 0.0, 0.0, 0.0, 1.0, 0.0]);
+
+    fn of(info: &::gltf::texture::Info) -> Self {
+        match info.texture_transform() {
+            None => Self::IDENTITY,
+            Some(t) => {
+                let [ox, oy] = t.offset().map(|x| x as f64);
+                let [sx, sy] = t.scale().map(|x| x as f64);
+                let r = t.rotation() as f64;
+                let (s, c) = r.sin_cos();
+                // translation · rotation · scale with rotation [c s; −s c] (the extension's).
+                Self([c * sx, s * sy, ox, -s * sx, c * sy, oy])
+            }
+        }
+    }
+
+    fn apply(&self, [u, v]: [f64; 2]) -> [f64; 2] {
+        let m = self.0;
+        [m[0] * u + m[1] * v + m[2], m[3] * u + m[4] * v + m[5]]
+    }
+}
+
+/// What a glTF material becomes: ours, the UV transform its textures share, whether its faces
+/// are cut out entirely (a constant alpha below the cutoff).
+struct MaterialOut {
+    material: Material,
+    uv: UvTransform,
+    invisible: bool,
+}
+
+/// Parses a glTF or GLB file's bytes; `path` names it and locates its buffers and images.
+pub fn parse(path: &Path, bytes: &[u8], files: &dyn Files) -> Result<GltfScene> {
+    let p = path.display();
+    // The JSON for the checks the crate does not make (required extensions, with a message of
+    // ours) and for node transforms in f64.
+    let (json_bytes, blob): (Vec<u8>, Option<Vec<u8>>) = if bytes.starts_with(b"glTF") {
+        let glb = ::gltf::binary::Glb::from_slice(bytes).map_err(|e| anyhow!("{p}: not a valid GLB file: {e}"))?;
+        (glb.json.into_owned(), glb.bin.map(|b| b.into_owned()))
+    } else {
+        (crate::files::without_bom(bytes).to_vec(), None)
+    };
+    let json: serde_json::Value =
+        serde_json::from_slice(&json_bytes).map_err(|e| anyhow!("{p}: not glTF JSON: {e}"))?;
+    let list = |key: &str| -> Vec<String> {
+        json[key]
+            .as_array()
+            .map(|a| a.iter().filter_map(|v| v.as_str().map(String::from)).collect())
+            .unwrap_or_default()
+    };
+    for ext in list("extensionsRequired") {
+        if !SUPPORTED_EXTENSIONS.contains(&ext.as_str()) {
+            bail!("{p}: requires the glTF extension {ext}, which kdtrace does not support");
+        }
+    }
+    let mut warnings = Vec::new();
+    for ext in list("extensionsUsed") {
+        if SUPPORTED_EXTENSIONS.contains(&ext.as_str()) {
+            continue;
+        }
+        let what = match ext.as_str() {
+            "KHR_lights_punctual" => continue, // counted below
+            "KHR_materials_volume" => "volume absorption is not rendered (the surfaces are)",
+            _ => "not supported, ignored",
+        };
+        warnings.push(format!("{p}: glTF extension {ext}: {what}"));
+    }
+    let document = ::gltf::Gltf::from_slice_without_validation(&json_bytes)
+        .map_err(|e| anyhow!("{p}: not a glTF 2.0 file: {e}"))?
+        .document;
+    // The crate's validation (indices in range, required fields), with its path to the problem.
+    {
+        let root = document.as_json();
+        // gltf-json's own check of POSITION's min and max indexes the accessors unchecked.
+        for (m, mesh) in root.meshes.iter().enumerate() {
+            for (k, prim) in mesh.primitives.iter().enumerate() {
+                for (semantic, index) in &prim.attributes {
+                    if index.value() >= root.accessors.len() {
+                        bail!(
+                            "{p}: invalid glTF: meshes[{m}].primitives[{k}].attributes[\"{}\"]: accessor {} does \
+                             not exist ({} accessors)",
+                            semantic.to_string(),
+                            index.value(),
+                            root.accessors.len()
+                        );
+                    }
+                }
+            }
+        }
+        let mut problems = Vec::new();
+        use ::gltf::json::validation::Validate;
+        root.validate(root, ::gltf::json::Path::new, &mut |path, error| {
+            let path = path().to_string();
+            // Readers never need POSITION's bounds (exporters do leave them out): not an error here.
+            let bounds = path.ends_with(".min") || path.ends_with(".max");
+            if !(bounds && error == ::gltf::json::validation::Error::Missing) {
+                problems.push(format!("{path}: {error}"));
+            }
+        });
+        if !problems.is_empty() {
+            bail!("{p}: invalid glTF: {}", problems.join("; "));
+        }
+    }
+    // Buffers.
+    let mut buffers = Vec::new();
+    for b in document.buffers() {
+        let what = format!("buffer {}", b.index());
+        let data = match b.source() {
+            ::gltf::buffer::Source::Bin => {
+                blob.clone().ok_or_else(|| anyhow!("{p}: {what} is the GLB binary chunk, which this file lacks"))?
+            }
+            ::gltf::buffer::Source::Uri(uri) => read_uri(path, uri, files, &what)?,
+        };
+        if data.len() < b.length() {
+            bail!("{p}: {what} holds {} bytes, fewer than its byteLength {}", data.len(), b.length());
+        }
+        buffers.push(data);
+    }
+    // Materials (the default material last).
+    let mut textures = TextureSet::default();
+    let mut outs = Vec::new();
+    let mut names = Vec::new();
+    let mut notes: BTreeSet<String> = BTreeSet::new();
+    for m in document.materials() {
+        let label = match m.name() {
+            Some(n) => format!("material {} ({n:?})", m.index().unwrap_or(0)),
+            None => format!("material {}", m.index().unwrap_or(0)),
+        };
+        outs.push(material(path, &document, &buffers, files, &m, &label, &mut textures, &mut notes)?);
+        names.push(m.name().map_or_else(|| format!("material{}", m.index().unwrap_or(0)), String::from));
+    }
+    let default_material = outs.len() as u32;
+    // The specification's default: white, fully metallic, fully rough.
+    let p_default = Principled { base_color: Vec3::ONE, metallic: 1.0, roughness: 1.0, transmission: 0.0, ior: 1.5 };
+    outs.push(MaterialOut {
+        material: principled(&p_default, Vec3::ZERO),
+        uv: UvTransform::IDENTITY,
+        invisible: false,
+    });
+    names.push("default".into());
+
+    // The scene's nodes, depth first, with world transforms.
+    let scene = document.default_scene().or_else(|| document.scenes().next());
+    let Some(scene) = scene else { bail!("{p}: no scene to render (the file defines none)") };
+    let mut stack: Vec<(::gltf::Node, DMat4, usize)> = Vec::new();
+    for n in scene.nodes() {
+        stack.push((n, DMat4::IDENTITY, 0));
+    }
+    let mut triangles = Vec::new();
+    let mut material_of = Vec::new();
+    let mut attributes: Vec<WorldAttributes> = Vec::new();
+    let mut any_attributes = false;
+    let mut cameras = Vec::new();
+    let mut lights = Vec::new();
+    let mut cut = 0usize;
+    let mut visits = 0usize;
+    while let Some((node, parent, depth)) = stack.pop() {
+        visits += 1;
+        if depth > 256 || visits > 1 << 22 {
+            bail!("{p}: the node hierarchy is cyclic or deeper than 256 levels (node {})", node.index());
+        }
+        let world = parent * node_matrix(path, &json, node.index())?;
+        let children: Vec<_> = node.children().collect();
+        for c in children.into_iter().rev() {
+            stack.push((c, world, depth + 1));
+        }
+        let linear = DMat3::from_mat4(world);
+        if let Some(c) = node.camera() {
+            let eye = world.transform_point3(DVec3::ZERO);
+            let forward = linear * DVec3::NEG_Z;
+            let up = linear * DVec3::Y;
+            if forward.length() == 0.0 || up.length() == 0.0 || !eye.is_finite() {
+                bail!("{p}: node {}: camera {} has a degenerate transform", node.index(), c.index());
+            }
+            let (fov_deg, aspect) = match c.projection() {
+                ::gltf::camera::Projection::Perspective(q) => (
+                    Some((q.yfov() as f64).to_degrees()),
+                    q.aspect_ratio().map(|a| a as f64).filter(|a| *a > 0.0 && a.is_finite()),
+                ),
+                ::gltf::camera::Projection::Orthographic(_) => (None, None),
+            };
+            if let Some(f) = fov_deg {
+                if !(f > 0.0 && f < 180.0) {
+                    bail!("{p}: camera {}: yfov of {f}° is outside (0, 180)", c.index());
+                }
+            }
+            cameras.push(GltfCamera {
+                index: c.index(),
+                name: c.name().map(String::from),
+                eye,
+                target: eye + forward.normalize(),
+                up: up.normalize(),
+                fov_deg,
+                aspect,
+            });
+        }
+        if let Some(l) = node.light() {
+            use ::gltf::khr_lights_punctual::Kind as L;
+            let (kind, inner_cone, outer_cone) = match l.kind() {
+                L::Directional => ("directional", 0.0, 0.0),
+                L::Point => ("point", 0.0, 0.0),
+                L::Spot { inner_cone_angle, outer_cone_angle } => ("spot", inner_cone_angle, outer_cone_angle),
+            };
+            lights.push(GltfLight {
+                name: l.name().map(String::from),
+                kind,
+                position: world.transform_point3(DVec3::ZERO),
+                direction: (linear * DVec3::NEG_Z).normalize_or_zero(),
+                color: l.color(),
+                intensity: l.intensity(),
+                range: l.range(),
+                inner_cone,
+                outer_cone,
+            });
+        }
+        let Some(mesh) = node.mesh() else { continue };
+        let mirrors = linear.determinant() < 0.0;
+        let normal_matrix = linear.inverse().transpose();
+        let mesh_label = match mesh.name() {
+            Some(n) => format!("mesh {} ({n:?})", mesh.index()),
+            None => format!("mesh {}", mesh.index()),
+        };
+        for prim in mesh.primitives() {
+            let at = format!("{p}: {mesh_label} primitive {} (node {})", prim.index(), node.index());
+            let mode = prim.mode();
+            if matches!(mode, Mode::Points | Mode::Lines | Mode::LineLoop | Mode::LineStrip) {
+                bail!("{at}: {mode:?} primitives are not supported (kdtrace renders triangles)");
+            }
+            let pos = prim.get(&::gltf::Semantic::Positions).ok_or_else(|| anyhow!("{at}: no POSITION attribute"))?;
+            let positions = read_accessor(&buffers, &pos, 3, "POSITION").map_err(|e| anyhow!("{at}: {e}"))?;
+            let vertices = positions.len() / 3;
+            let normals = match prim.get(&::gltf::Semantic::Normals) {
+                Some(a) => Some(read_accessor(&buffers, &a, 3, "NORMAL").map_err(|e| anyhow!("{at}: {e}"))?),
+                None => None,
+            };
+            let uvs = match prim.get(&::gltf::Semantic::TexCoords(0)) {
+                Some(a) => Some(read_accessor(&buffers, &a, 2, "TEXCOORD_0").map_err(|e| anyhow!("{at}: {e}"))?),
+                None => None,
+            };
+            for (what, len, n) in
+                [("NORMAL", normals.as_ref().map(Vec::len), 3), ("TEXCOORD_0", uvs.as_ref().map(Vec::len), 2)]
+            {
+                if let Some(len) = len {
+                    if len / n != vertices {
+                        bail!("{at}: {what} has {} elements for {vertices} positions", len / n);
+                    }
+                }
+            }
+            let indices: Vec<usize> = match prim.indices() {
+                Some(a) => {
+                    use ::gltf::accessor::DataType;
+                    if !matches!(a.data_type(), DataType::U8 | DataType::U16 | DataType::U32) || a.normalized() {
+                        bail!("{at}: indices accessor {} is not unsigned integers", a.index());
+                    }
+                    let raw = read_accessor(&buffers, &a, 1, "indices").map_err(|e| anyhow!("{at}: {e}"))?;
+                    let mut out = Vec::with_capacity(raw.len());
+                    for x in raw {
+                        let i = x as usize;
+                        if i >= vertices {
+                            bail!("{at}: index {i} out of range ({vertices} vertices)");
+                        }
+                        out.push(i);
+                    }
+                    out
+                }
+                None => (0..vertices).collect(),
+            };
+            let corners: Vec<[usize; 3]> = match mode {
+                Mode::Triangles => indices.as_chunks::<3>().0.to_vec(),
+                Mode::TriangleStrip => (0..indices.len().saturating_sub(2))
+                    .map(|i| {
+                        if i % 2 == 0 {
+                            [indices[i], indices[i + 1], indices[i + 2]]
+                        } else {
+                            [indices[i + 1], indices[i], indices[i + 2]]
+                        }
+                    })
+                    .collect(),
+                _ => (1..indices.len().saturating_sub(1)).map(|i| [indices[0], indices[i], indices[i + 1]]).collect(),
+            };
+            let mat = prim.material().index().map_or(default_material, |i| i as u32);
+            let out = &outs[mat as usize];
+            if out.invisible {
+                cut += corners.len();
+                continue;
+            }
+            let has_attributes = normals.is_some() || uvs.is_some();
+            any_attributes |= has_attributes;
+            for c in corners {
+                let v = c.map(|i| {
+                    world.transform_point3(DVec3::new(positions[3 * i], positions[3 * i + 1], positions[3 * i + 2]))
+                });
+                let mut a = WorldAttributes::default();
+                if let Some(n) = &normals {
+                    let ns = c.map(|i| normal_matrix * DVec3::new(n[3 * i], n[3 * i + 1], n[3 * i + 2]));
+                    let lengths = ns.map(|n| n.length());
+                    if lengths.iter().all(|l| l.is_finite() && *l > 0.0) {
+                        a.normals = [0, 1, 2].map(|j| ns[j] / lengths[j]);
+                    }
+                }
+                if let Some(t) = &uvs {
+                    a.uv = c.map(|i| {
+                        let [u, v] = out.uv.apply([t[2 * i], t[2 * i + 1]]);
+                        [u, 1.0 - v]
+                    });
+                }
+                let (v, a) = if mirrors {
+                    (
+                        [v[0], v[2], v[1]],
+                        WorldAttributes {
+                            normals: [a.normals[0], a.normals[2], a.normals[1]],
+                            uv: [a.uv[0], a.uv[2], a.uv[1]],
+                        },
+                    )
+                } else {
+                    (v, a)
+                };
+                for x in v {
+                    if !x.is_finite() || x.abs().max_element() > MAX_COORDINATE as f64 {
+                        bail!("{at}: placed vertex {x} is not finite or beyond ±{MAX_COORDINATE:e}");
+                    }
+                }
+                triangles.push(v);
+                material_of.push(mat);
+                attributes.push(a);
+            }
+        }
+    }
+    if !any_attributes {
+        attributes.clear();
+    }
+    cameras.sort_by_key(|c| c.index);
+    if cut > 0 {
+        warnings.push(format!("{p}: {cut} triangles cut out: their material's alpha is below its alphaCutoff"));
+    }
+    if !lights.is_empty() {
+        warnings.push(format!("{p}: KHR_lights_punctual: {} lights not rendered yet", lights.len()));
+    }
+    warnings.extend(notes);
+    if triangles.is_empty() {
+        bail!("{p}: no triangles in the scene");
+    }
+    let scene = WorldScene {
+        triangles,
+        material_of,
+        materials: outs.iter().map(|o| o.material).collect(),
+        material_names: names,
+        attributes,
+        textures,
+    };
+    Ok(GltfScene { mesh: Mesh { scene, warnings }, cameras, lights })
+}
+
+/// Reads an image's bytes when first needed.
+type ImageBytes<'a> = Box<dyn FnOnce() -> Result<Vec<u8>> + 'a>;
+
+/// The image bytes of a texture and a name for it (its file, or `file.gltf#image3`).
+fn image_source<'a>(
+    path: &'a Path,
+    buffers: &'a [Vec<u8>],
+    files: &'a dyn Files,
+    image: &::gltf::Image,
+) -> (PathBuf, ImageBytes<'a>) {
+    match image.source() {
+        ::gltf::image::Source::Uri { uri, .. } if !uri.starts_with("data:") => {
+            let full = path.parent().unwrap_or(Path::new("")).join(percent_decode(uri));
+            let uri = uri.to_string();
+            let f = full.clone();
+            (
+                full,
+                Box::new(move || {
+                    files
+                        .read(&f)
+                        .map_err(|e| anyhow!("{}: image {uri:?}: cannot read {}: {e}", path.display(), f.display()))
+                }),
+            )
+        }
+        ::gltf::image::Source::Uri { uri, .. } => {
+            let name = PathBuf::from(format!("{}#image{}", path.display(), image.index()));
+            let uri = uri.to_string();
+            let what = format!("image {}", image.index());
+            (name, Box::new(move || read_uri(path, &uri, files, &what)))
+        }
+        ::gltf::image::Source::View { view, .. } => {
+            let name = PathBuf::from(format!("{}#image{}", path.display(), image.index()));
+            let (b, start, len, index) = (view.buffer().index(), view.offset(), view.length(), image.index());
+            (
+                name,
+                Box::new(move || {
+                    buffers
+                        .get(b)
+                        .and_then(|data| data.get(start..start.checked_add(len)?))
+                        .map(<[u8]>::to_vec)
+                        .ok_or_else(|| {
+                            anyhow!("{}: image {index}: its buffer view lies outside buffer {b}", path.display())
+                        })
+                }),
+            )
+        }
+    }
+}
+
+/// A glTF material as a principled one (module docs; README "glTF scenes").
+#[allow(clippy::too_many_arguments)]
+fn material(
+    path: &Path,
+    _document: &::gltf::Document,
+    buffers: &[Vec<u8>],
+    files: &dyn Files,
+    m: &::gltf::Material,
+    label: &str,
+    textures: &mut TextureSet,
+    notes: &mut BTreeSet<String>,
+) -> Result<MaterialOut> {
+    let p = path.display();
+    let pbr = m.pbr_metallic_roughness();
+    let base = pbr.base_color_factor();
+    let strength = m.emissive_strength().unwrap_or(1.0);
+    let emissive = m.emissive_factor().map(|e| e * strength);
+    let transmission = m.transmission();
+    let check = |what: &str, x: f32, range: std::ops::RangeInclusive<f32>| -> Result<f32> {
+        if x.is_finite() && range.contains(&x) {
+            Ok(x)
+        } else {
+            bail!("{p}: {label}: {what} {x} is outside {range:?}")
+        }
+    };
+    for (i, c) in base.iter().enumerate() {
+        check(&format!("baseColorFactor[{i}]"), *c, 0.0..=1.0)?;
+    }
+    for (i, c) in emissive.iter().enumerate() {
+        check(&format!("emissiveFactor[{i}] × emissive strength"), *c, 0.0..=65504.0)?;
+    }
+    let pr = Principled {
+        base_color: Vec3::new(base[0], base[1], base[2]),
+        metallic: check("metallicFactor", pbr.metallic_factor(), 0.0..=1.0)?,
+        roughness: check("roughnessFactor", pbr.roughness_factor(), 0.0..=1.0)?,
+        transmission: check("transmission", transmission.as_ref().map_or(0.0, |t| t.transmission_factor()), 0.0..=1.0)?,
+        ior: check("ior", m.ior().unwrap_or(1.5), 1.0..=10.0)?.max(1.0 + 1e-4),
+    };
+    let mut mat = principled(&pr, Vec3::from(emissive));
+    // Textures: each slot's texture info with the kind it is read as.
+    let bits = |v: [f32; 3]| v.map(f32::to_bits);
+    let mut slots: Vec<(&str, ::gltf::texture::Info, usize, Kind)> = Vec::new();
+    if let Some(t) = pbr.base_color_texture() {
+        slots.push(("baseColorTexture", t, TEXTURE_ALBEDO, Kind::ColourTimes(bits([base[0], base[1], base[2]]))));
+    }
+    if let Some(t) = pbr.metallic_roughness_texture() {
+        slots.push((
+            "metallicRoughnessTexture",
+            t.clone(),
+            TEXTURE_ROUGHNESS,
+            Kind::ChannelTimes(1, pr.roughness.to_bits()),
+        ));
+        slots.push(("metallicRoughnessTexture", t, TEXTURE_METALLIC, Kind::ChannelTimes(2, pr.metallic.to_bits())));
+    }
+    if let Some(t) = m.emissive_texture() {
+        if emissive.iter().any(|e| *e > 0.0) {
+            slots.push(("emissiveTexture", t, TEXTURE_EMISSION, Kind::ColourTimes(bits(emissive))));
+        }
+    }
+    // Alpha: MASK (and BLEND, as MASK at 0.5) cut out where baseColor alpha × factor < cutoff.
+    let mut invisible = false;
+    let mode = m.alpha_mode();
+    if mode != ::gltf::material::AlphaMode::Opaque {
+        let cutoff = if mode == ::gltf::material::AlphaMode::Mask { m.alpha_cutoff().unwrap_or(0.5) } else { 0.5 };
+        if mode == ::gltf::material::AlphaMode::Blend {
+            notes.insert(format!(
+                "{p}: {label}: alphaMode BLEND rendered as MASK at alpha 0.5 (no partial transparency)"
+            ));
+        }
+        if cutoff > 0.0 && cutoff.is_finite() {
+            match pbr.base_color_texture() {
+                Some(t) => {
+                    // The mask reads alpha · factor · 0.5/cutoff against ALPHA_CUTOFF (0.5).
+                    let scale = base[3] * ALPHA_CUTOFF / cutoff;
+                    slots.push(("baseColorTexture (alpha)", t, TEXTURE_ALPHA, Kind::ChannelTimes(3, scale.to_bits())));
+                }
+                None => invisible = base[3] < cutoff,
+            }
+        }
+    }
+    let uv = slots.first().map_or(UvTransform::IDENTITY, |s| UvTransform::of(&s.1));
+    for (key, info, slot, kind) in &slots {
+        if UvTransform::of(info) != uv {
+            notes.insert(format!(
+                "{p}: {label}: {key} has a KHR_texture_transform of its own; all its textures use the {}'s",
+                slots[0].0
+            ));
+        }
+        let set = info.texture_transform().and_then(|t| t.tex_coord()).unwrap_or(info.tex_coord());
+        if set != 0 {
+            notes.insert(format!(
+                "{p}: {label}: {key} reads TEXCOORD_{set}; kdtrace reads TEXCOORD_0 for every texture"
+            ));
+        }
+        let texture = info.texture();
+        let sampler = texture.sampler();
+        use ::gltf::texture::WrappingMode as W;
+        let (s, t) = (sampler.wrap_s(), sampler.wrap_t());
+        let clamp = s == W::ClampToEdge && t == W::ClampToEdge;
+        if !clamp && (s != W::Repeat || t != W::Repeat) {
+            notes.insert(format!(
+                "{p}: {label}: {key}: sampler wrapping {s:?}/{t:?} is rendered as Repeat (kdtrace wraps both axes alike, \
+                 repeat or clamp)"
+            ));
+        }
+        let image = texture.source();
+        let (name, bytes) = image_source(path, buffers, files, &image);
+        let wanted_by = format!("{p}: {label}: {key}");
+        mat.textures[*slot] = textures.load_bytes(&name, bytes, *kind, clamp, &wanted_by)?;
+    }
+    if mat.textures[TEXTURE_EMISSION] != NO_TEXTURE {
+        let mean = textures.textures[mat.textures[TEXTURE_EMISSION] as usize - 1].mean_rgb();
+        mat.emission = Vec3::from(mean).extend(0.0);
+    }
+    if let Some(n) = m.normal_texture() {
+        let scale = n.scale();
+        if !scale.is_finite() {
+            bail!("{p}: {label}: normalTexture scale {scale} is not finite");
+        }
+        if n.tex_coord() != 0 {
+            notes.insert(format!(
+                "{p}: {label}: normalTexture reads TEXCOORD_{}; kdtrace reads TEXCOORD_0",
+                n.tex_coord()
+            ));
+        }
+        let texture = n.texture();
+        use ::gltf::texture::WrappingMode as W;
+        let clamp = texture.sampler().wrap_s() == W::ClampToEdge && texture.sampler().wrap_t() == W::ClampToEdge;
+        let (name, bytes) = image_source(path, buffers, files, &texture.source());
+        let wanted_by = format!("{p}: {label}: normalTexture");
+        mat.textures[TEXTURE_NORMAL] = textures.load_bytes(&name, bytes, Kind::Linear, clamp, &wanted_by)?;
+        mat.eta.w = scale;
+    }
+    if transmission.as_ref().is_some_and(|t| t.transmission_texture().is_some()) {
+        notes.insert(format!("{p}: {label}: transmissionTexture ignored (the factor is used)"));
+    }
+    if m.volume().is_some() {
+        notes.insert(format!(
+            "{p}: {label}: KHR_materials_volume: absorption (attenuationColor, attenuationDistance) is not rendered"
+        ));
+    }
+    Ok(MaterialOut { material: mat, uv, invisible })
+}
+
+/// Whether `path` names a glTF file (`.gltf` or `.glb`).
+pub fn is_gltf(path: &Path) -> bool {
+    path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).is_some_and(|e| e == "gltf" || e == "glb")
+}
+
+/// Loads a mesh file for a scene file's `[[mesh]]`: an OBJ (+ MTL) or a glTF file (its cameras
+/// and lights left out).
+pub fn load_any_mesh(path: &Path, files: &dyn Files) -> Result<Mesh> {
+    if is_gltf(path) {
+        load(path, files).map(|g| g.mesh)
+    } else {
+        crate::scene::obj::load_mesh(path, files)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn texture_transforms_follow_the_extension() {
+        // Offset, then rotation about the origin, then scale: T·R·S with R = [c s; −s c].
+        let (s, c) = 0.5f64.sin_cos();
+        let t = UvTransform([c * 2.0, s * 3.0, 0.25, -s * 2.0, c * 3.0, 0.5]);
+        let [u, v] = t.apply([1.0, 1.0]);
+        assert!((u - (2.0 * c + 3.0 * s + 0.25)).abs() < 1e-12);
+        assert!((v - (-2.0 * s + 3.0 * c + 0.5)).abs() < 1e-12);
+        assert_eq!(UvTransform::IDENTITY.apply([0.3, 0.7]), [0.3, 0.7]);
+    }
+
+    #[test]
+    fn uris_are_percent_decoded() {
+        assert_eq!(percent_decode("my%20image.png"), "my image.png");
+        assert_eq!(percent_decode("100%"), "100%");
+        assert_eq!(percent_decode("a%zzb"), "a%zzb");
+        assert_eq!(percent_decode("é%41"), "éA");
+    }
+
+    #[test]
+    fn node_transforms_are_read_in_f64() {
+        let json: serde_json::Value = serde_json::from_str(
+            r#"{"nodes": [{"translation": [400000.123456789, 6000000.987654321, 0.5]},
+                          {"matrix": [1,0,0,0, 0,1,0,0, 0,0,1,0, 5,6,7,1]},
+                          {"rotation": [0, 0, 0, 0]},
+                          {"translation": [1, 2]}]}"#,
+        )
+        .unwrap();
+        let p = Path::new("t.gltf");
+        let m = node_matrix(p, &json, 0).unwrap();
+        assert_eq!(m.transform_point3(DVec3::ZERO), DVec3::new(400000.123456789, 6000000.987654321, 0.5));
+        assert_eq!(node_matrix(p, &json, 1).unwrap().transform_point3(DVec3::ZERO), DVec3::new(5.0, 6.0, 7.0));
+        assert!(node_matrix(p, &json, 2).unwrap_err().to_string().contains("zero quaternion"));
+        assert!(node_matrix(p, &json, 3).unwrap_err().to_string().contains("translation needs 3 numbers"));
+    }
+}

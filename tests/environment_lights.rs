@@ -348,3 +348,32 @@ fn bad_maps_and_lights_are_errors_naming_the_file_and_line() {
         }
     }
 }
+
+#[test]
+fn the_command_line_takes_a_map_or_a_colour() {
+    let dir = scene_dir("cli");
+    write_pfm(&dir.join("sky.pfm"), 8, 4, |x, _| [0.2 * x as f32, 0.5, 0.5]);
+    let run = |env: &str| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_kdtrace"))
+            .args(["render", "bunny.obj", "--out", "out.exr", "--spp", "2", "--width", "8", "--height", "8", "--json"])
+            .args(["--environment", env])
+            .current_dir(&dir)
+            .output()
+            .unwrap()
+    };
+    let map = run("sky.pfm");
+    assert!(map.status.success(), "{}", String::from_utf8_lossy(&map.stderr));
+    assert!(String::from_utf8_lossy(&map.stdout).contains(r#""environment":"map""#));
+    let colour = run("0.5,0.5,0.5");
+    assert!(colour.status.success(), "{}", String::from_utf8_lossy(&colour.stderr));
+    assert!(String::from_utf8_lossy(&colour.stdout).contains(r#""environment":"constant""#));
+    for (bad, wanted) in [("missing.exr", "missing.exr"), ("1,x,2", "--environment 1,x,2")] {
+        let out = run(bad);
+        assert_eq!(out.status.code(), Some(2), "{bad}");
+        assert!(
+            String::from_utf8_lossy(&out.stderr).contains(wanted),
+            "{bad}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+}

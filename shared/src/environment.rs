@@ -83,7 +83,8 @@ fn to_local(words: &[u32], o: u32, d: Vec3) -> Vec3 {
 fn local_coordinates(words: &[u32], o: u32, d: Vec3, row_scale: f32) -> (f32, f32, f32) {
     let w = words[o as usize] as f32;
     let rho = (d.x * d.x + d.z * d.z).sqrt();
-    let len = (rho * rho + d.y * d.y).sqrt();
+    // Not sqrt(rho² + y²): a driver may replace sqrt(a)·sqrt(a) by a.
+    let len = (d.x * d.x + d.y * d.y + d.z * d.z).sqrt();
     let mut cu = atan2(d.x, -d.z) * f(words, o + 13);
     if cu < 0.0 {
         cu += w;

@@ -29,7 +29,7 @@ use std::f64::consts::PI;
 const ALPHA: f64 = 0.01;
 /// χ² tests of correct samplers in this file (the deliberately wrong pdfs are not counted: they
 /// must fail and are not part of the family whose false-alarm rate is controlled).
-const TESTS: u64 = 42;
+const TESTS: u64 = 43;
 const MIN_EXPECTED: f64 = 5.0;
 const SAMPLES: usize = 1_000_000;
 
@@ -617,5 +617,79 @@ fn principled_samples_follow_its_pdf() {
             );
             k += 1;
         }
+    }
+}
+
+/// A small non-uniform environment map (16×8: a gradient, a bright spot, a black band), rotated.
+fn test_environment_map(rotate: [f64; 3]) -> kdtrace::scene::EnvironmentMap {
+    let (w, h) = (16u32, 8u32);
+    let texels = (0..w * h)
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            let base = 0.2 + 0.1 * x as f32 + 0.05 * y as f32;
+            if (x, y) == (5, 2) {
+                [40.0, 30.0, 20.0]
+            } else if y == 6 {
+                [0.0; 3]
+            } else {
+                [base, 0.5 * base, 1.5 * base]
+            }
+        })
+        .collect();
+    kdtrace::scene::EnvironmentMap::new(w, h, texels, 1.5, rotate, "test map".into()).unwrap()
+}
+
+/// The environment map's sampling (`shared::environment::sample`) follows the density its `pdf`
+/// reports, binned in the map's own (u, v) square (bins at half a cell, so the density is
+/// smooth inside each), and the density of the map rotated by 10° more is rejected.
+#[test]
+fn environment_map_samples_follow_its_pdf() {
+    use shared::environment;
+    let rotate = [20.0, 30.0, -15.0];
+    let map = test_environment_map(rotate);
+    let words = map.pack(1.0);
+    let to_world = map.to_world();
+    let (nx, ny) = (32usize, 16usize);
+    let uv_dir = |u: f64, v: f64| -> Vec3 {
+        let (theta, phi) = (v * PI, u * 2.0 * PI);
+        let local = shared::glam::DVec3::new(phi.sin() * theta.sin(), theta.cos(), -phi.cos() * theta.sin());
+        (to_world * local).as_vec3()
+    };
+    let bin = |w: Vec3| -> usize {
+        let l = to_world.transpose() * w.as_dvec3().normalize();
+        let u = l.x.atan2(-l.z).rem_euclid(2.0 * PI) / (2.0 * PI);
+        let v = l.y.clamp(-1.0, 1.0).acos() / PI;
+        let (x, y) = ((u * nx as f64).min(nx as f64 - 1.0) as usize, (v * ny as f64).min(ny as f64 - 1.0) as usize);
+        y * nx + x
+    };
+    let run = |pdf: &dyn Fn(Vec3) -> f64, seed: u64| {
+        let mut rng = Pcg64::seed_from_u64(seed);
+        let mut obs = vec![0f64; nx * ny];
+        // pdf() of a sampled direction is the sample's own density, except where rounding puts
+        // the direction into the neighbouring cell (a few in a million).
+        let mut mismatches = 0;
+        for _ in 0..SAMPLES {
+            let s = environment::sample(&words, 0, rng.random(), rng.random());
+            assert!(s.pdf > 0.0 && (s.wi.length() - 1.0).abs() < 1e-5, "sample {:?} pdf {}", s.wi, s.pdf);
+            let p = environment::pdf(&words, 0, s.wi);
+            if (p as f64 / s.pdf as f64 - 1.0).abs() > 1e-3 {
+                mismatches += 1;
+            }
+            obs[bin(s.wi)] += 1.0;
+        }
+        assert!(mismatches < SAMPLES / 10_000, "{mismatches} samples whose pdf() differs from their density");
+        let exp = integrate_bins(nx, ny, SAMPLES, |u, v| pdf(uv_dir(u, v)) * 2.0 * PI * PI * (v * PI).sin());
+        chi2(&obs, &exp)
+    };
+    let good = run(&|w| environment::pdf(&words, 0, w) as f64, 90);
+    let other = test_environment_map([20.0, 40.0, -15.0]).pack(1.0);
+    let wrong = run(&|w| environment::pdf(&other, 0, w) as f64, 90);
+    assert_pass_and_wrong_rejected("environment map", good, wrong);
+    // The radiance a sample carries is the map's radiance in its direction.
+    let mut rng = Pcg64::seed_from_u64(91);
+    for _ in 0..1000 {
+        let s = environment::sample(&words, 0, rng.random(), rng.random());
+        let l = environment::eval(&words, 0, s.wi);
+        assert!((l - s.radiance).abs().max_element() <= 1e-3 * (1.0 + l.max_element()), "{l} vs {}", s.radiance);
     }
 }

@@ -10,7 +10,8 @@ use crate::layout::RenderParams;
 
 /// At least one emitting triangle: next-event estimation and MIS have something to sample.
 pub const FEATURE_EMITTERS: u32 = 1 << 0;
-/// More than one emitting triangle: picking a light needs the light table's distribution.
+/// More than one entry in the light table (emitting triangles, the environment map, punctual
+/// lights): picking a light needs the table's distribution.
 pub const FEATURE_MANY_EMITTERS: u32 = 1 << 1;
 /// Rays that leave the scene bring radiance (a non-black environment).
 pub const FEATURE_ENVIRONMENT: u32 = 1 << 2;
@@ -34,8 +35,13 @@ pub const FEATURE_TEXTURES: u32 = 1 << 9;
 pub const FEATURE_ALPHA_MASKS: u32 = 1 << 10;
 /// Some triangle has vertex normals: shading interpolates them (`surface::shading_normal`).
 pub const FEATURE_VERTEX_NORMALS: u32 = 1 << 11;
+/// An environment map (`environment`): looked up by rays that leave the scene and sampled by
+/// next-event estimation from the light table.
+pub const FEATURE_ENVIRONMENT_MAP: u32 = 1 << 12;
+/// Punctual lights (`punctual`: point, spot, directional) in the light table.
+pub const FEATURE_PUNCTUAL: u32 = 1 << 13;
 /// Every feature: the generic code, which serves any scene.
-pub const FEATURES_ALL: u32 = (1 << 12) - 1;
+pub const FEATURES_ALL: u32 = (1 << 14) - 1;
 /// The material-kind bits: when exactly one is set, material dispatch is skipped.
 pub const FEATURE_MATERIALS: u32 =
     FEATURE_DIFFUSE | FEATURE_CONDUCTOR | FEATURE_DIELECTRIC | FEATURE_PLASTIC | FEATURE_PRINCIPLED;

@@ -13,12 +13,20 @@
 //! hits, emission, light and BSDF samples, roulette); `trace_sample` and the renderers pass
 //! `NoRecord`, whose hooks compile to nothing.
 use crate::camera::primary_direction;
-use crate::features::{Variant, FEATURE_EMITTERS, FEATURE_ENVIRONMENT, FEATURE_INDIRECT, FEATURE_MANY_EMITTERS};
+use crate::environment;
+use crate::features::{
+    Variant, FEATURE_EMITTERS, FEATURE_ENVIRONMENT, FEATURE_ENVIRONMENT_MAP, FEATURE_INDIRECT, FEATURE_MANY_EMITTERS,
+    FEATURE_PUNCTUAL,
+};
 use crate::glam::{Vec3, Vec4};
 use crate::kdtree::Hit;
-use crate::layout::{RenderParams, AOV_ALBEDO, AOV_COST, AOV_NORMAL, NO_HIT, NO_LIGHT};
+use crate::layout::{
+    RenderParams, AOV_ALBEDO, AOV_COST, AOV_NORMAL, LIGHT_ENVIRONMENT_BIT, LIGHT_NOT_TRIANGLE, LIGHT_OFFSET_MASK,
+    NO_ENVIRONMENT_MAP, NO_HIT, NO_LIGHT,
+};
 use crate::material::{albedo, emitted, eval, is_delta, picks_lobe, sample as sample_bsdf, transmits};
 use crate::numerics::{offset_ray_origin, sanitize};
+use crate::punctual;
 use crate::raycast::query_recorded;
 use crate::record::{
     BsdfEvent, LightEvent, NoRecord, Recorder, SurfaceEvent, END_ABSORBED, END_AOV, END_BOUNCE_LIMIT, END_ESCAPED,
@@ -122,7 +130,21 @@ pub fn trace_sample_recorded<R: Recorder>(
         } else if hit.is_hit() {
             alive = shade_vertex(scene, p, v, &mut path, &mut rng, &hit, rec);
         } else {
-            if v.has(FEATURE_ENVIRONMENT) {
+            if v.has(FEATURE_ENVIRONMENT_MAP) & (p.environment_map != NO_ENVIRONMENT_MAP) {
+                // The map, MIS-weighted against its sampling by next-event estimation (the
+                // camera ray and a delta BSDF's ray take it whole).
+                let o = p.environment_map - 1;
+                let le = environment::eval(scene.textures, o, path.dir);
+                let mut weight = 1.0;
+                if path.bounce > 0 {
+                    let light_pdf =
+                        environment::selection_pmf(scene.textures, o) * environment::pdf(scene.textures, o, path.dir);
+                    weight = power_heuristic(path.bsdf_pdf, light_pdf);
+                }
+                let added = path.beta * le * weight;
+                path.radiance += added;
+                rec.escaped(added);
+            } else if v.has(FEATURE_ENVIRONMENT) {
                 let added = path.beta * xyz(p.environment);
                 path.radiance += added;
                 rec.escaped(added);
@@ -160,7 +182,8 @@ fn shade_vertex<R: Recorder>(
     // Without indirect light every vertex after the first adds exactly zero (nothing reflects,
     // or nothing emits): the path ends at its first hit, after that hit's emission.
     let last = !v.has(FEATURE_INDIRECT) | (path.bounce == v.max_bounces + 1);
-    let lights = v.has(FEATURE_EMITTERS) & (scene.light_count > 0);
+    let lights =
+        (v.has(FEATURE_EMITTERS) | v.has(FEATURE_ENVIRONMENT_MAP) | v.has(FEATURE_PUNCTUAL)) & (scene.light_count > 0);
     // This vertex's sample sets, drawn first: each is a chain of dependent hashes and
     // multiplications (`sobol`), which a CPU overlaps with the shading below when they start
     // here, not where their values are needed. The order of the sets is unchanged: the light
@@ -247,51 +270,75 @@ fn shade_vertex<R: Recorder>(
         let index = if many { select_light(scene.lights, scene.light_count, u_select) } else { 0 };
         let light = scene.lights[index as usize];
         let u1 = if many { remap_in_light(scene.lights, index, u_select) } else { u_select };
-        let ltri = &scene.triangles[light.triangle as usize];
-        let (b0, b1, b2) = uniform_triangle(u1, u_light);
-        let on_light = interpolate(ltri, b0, b1, b2);
-        let q = on_light.p;
-        let nl = stored_normal(ltri);
-        let to_light = q - pos;
-        let dist2 = length_squared(to_light);
-        let wi = to_light * (1.0 / dist2.sqrt());
-        let cos_l = -dot(nl, wi);
-        let (f, pdf_bsdf) = eval(v, mat, scene.textures, ns, wo, wi, front);
-        let mut event = LightEvent {
-            status: LIGHT_INVALID,
-            light: index,
-            triangle: light.triangle,
-            point: q,
-            light_pdf: 0.0,
-            bsdf_pdf: pdf_bsdf,
-            mis_weight: 0.0,
-            contribution: Vec3::ZERO,
-        };
-        if (cos_l > 0.0) & (pdf_bsdf > 0.0) & (dist2 > 0.0) & consistent(v, nf, ns, wi) {
-            let light_pdf = light.pmf * dist2 / (cos_l * light.area);
-            let target = offset_ray_origin(q, on_light.error, nl);
-            // A light behind a transmitting surface is seen through it: the shadow ray leaves
-            // from the far side.
-            let cos_i = dot(ns, wi);
-            let from = if dot(nf, wi) < 0.0 { offset_ray_origin(pos, surface.error, -nf) } else { spawn };
-            let (shadow_dir, shadow_t) = (target - from, 1.0 - SHADOW_EPSILON);
-            rec.ray(RAY_SHADOW, from, shadow_dir, shadow_t);
-            let shadow = query_recorded(scene, p.traversal, from, shadow_dir, shadow_t, true, rec);
-            rec.traced(shadow.hit.triangle, shadow.hit.t, shadow.hit.nodes, shadow.hit.tests, shadow.restarts);
-            event.status = LIGHT_BLOCKED;
-            event.light_pdf = light_pdf;
-            event.mis_weight = power_heuristic(light_pdf, pdf_bsdf);
-            if !shadow.hit.is_hit() {
-                let lmat = &scene.materials[scene.info[light.triangle as usize].material as usize];
-                let le = emission_at(scene, v, lmat, light.triangle, (b0, b1, b2));
-                let weight = power_heuristic(light_pdf, pdf_bsdf);
-                let added = path.beta * f * le * (cos_i.abs() * weight / light_pdf);
-                path.radiance += added;
-                event.status = LIGHT_UNBLOCKED;
-                event.contribution = added;
+        let other = (v.has(FEATURE_ENVIRONMENT_MAP) | v.has(FEATURE_PUNCTUAL)) & (light.triangle >= LIGHT_NOT_TRIANGLE);
+        if other {
+            sample_other_light(
+                scene,
+                p,
+                v,
+                path,
+                mat,
+                light.triangle,
+                light.pmf,
+                index,
+                pos,
+                spawn,
+                surface.error,
+                nf,
+                ns,
+                wo,
+                front,
+                u1,
+                u_light,
+                rec,
+            );
+        } else {
+            let ltri = &scene.triangles[light.triangle as usize];
+            let (b0, b1, b2) = uniform_triangle(u1, u_light);
+            let on_light = interpolate(ltri, b0, b1, b2);
+            let q = on_light.p;
+            let nl = stored_normal(ltri);
+            let to_light = q - pos;
+            let dist2 = length_squared(to_light);
+            let wi = to_light * (1.0 / dist2.sqrt());
+            let cos_l = -dot(nl, wi);
+            let (f, pdf_bsdf) = eval(v, mat, scene.textures, ns, wo, wi, front);
+            let mut event = LightEvent {
+                status: LIGHT_INVALID,
+                light: index,
+                triangle: light.triangle,
+                point: q,
+                light_pdf: 0.0,
+                bsdf_pdf: pdf_bsdf,
+                mis_weight: 0.0,
+                contribution: Vec3::ZERO,
+            };
+            if (cos_l > 0.0) & (pdf_bsdf > 0.0) & (dist2 > 0.0) & consistent(v, nf, ns, wi) {
+                let light_pdf = light.pmf * dist2 / (cos_l * light.area);
+                let target = offset_ray_origin(q, on_light.error, nl);
+                // A light behind a transmitting surface is seen through it: the shadow ray leaves
+                // from the far side.
+                let cos_i = dot(ns, wi);
+                let from = if dot(nf, wi) < 0.0 { offset_ray_origin(pos, surface.error, -nf) } else { spawn };
+                let (shadow_dir, shadow_t) = (target - from, 1.0 - SHADOW_EPSILON);
+                rec.ray(RAY_SHADOW, from, shadow_dir, shadow_t);
+                let shadow = query_recorded(scene, p.traversal, from, shadow_dir, shadow_t, true, rec);
+                rec.traced(shadow.hit.triangle, shadow.hit.t, shadow.hit.nodes, shadow.hit.tests, shadow.restarts);
+                event.status = LIGHT_BLOCKED;
+                event.light_pdf = light_pdf;
+                event.mis_weight = power_heuristic(light_pdf, pdf_bsdf);
+                if !shadow.hit.is_hit() {
+                    let lmat = &scene.materials[scene.info[light.triangle as usize].material as usize];
+                    let le = emission_at(scene, v, lmat, light.triangle, (b0, b1, b2));
+                    let weight = power_heuristic(light_pdf, pdf_bsdf);
+                    let added = path.beta * f * le * (cos_i.abs() * weight / light_pdf);
+                    path.radiance += added;
+                    event.status = LIGHT_UNBLOCKED;
+                    event.contribution = added;
+                }
             }
+            rec.light(event);
         }
-        rec.light(event);
     } else if lights {
         rec.light(LightEvent {
             status: LIGHT_DELTA,
@@ -344,6 +391,86 @@ fn shade_vertex<R: Recorder>(
         if transmits(v, mat) & (dot(bs.wi, nf) < 0.0) { offset_ray_origin(pos, surface.error, -nf) } else { spawn };
     path.dir = bs.wi;
     true
+}
+
+/// Next-event estimation toward a light-table entry that is not a triangle (`kind`:
+/// `LIGHT_NOT_TRIANGLE | offset`, with `LIGHT_ENVIRONMENT_BIT` for the environment map): the map
+/// is sampled by its distribution and MIS-weighted against the BSDF; a punctual light is a delta
+/// and takes its whole weight.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn sample_other_light<R: Recorder>(
+    scene: &SceneView,
+    p: &RenderParams,
+    v: Variant,
+    path: &mut Path,
+    mat: &crate::layout::Material,
+    kind: u32,
+    pmf: f32,
+    index: u32,
+    pos: Vec3,
+    spawn: Vec3,
+    error: Vec3,
+    nf: Vec3,
+    ns: Vec3,
+    wo: Vec3,
+    front: bool,
+    u1: f32,
+    u2: f32,
+    rec: &mut R,
+) {
+    let o = kind & LIGHT_OFFSET_MASK;
+    let env = v.has(FEATURE_ENVIRONMENT_MAP) & (kind & LIGHT_ENVIRONMENT_BIT != 0);
+    let mut wi = Vec3::Z;
+    let mut incident = Vec3::ZERO;
+    let mut light_pdf = 0.0;
+    let mut target = pos;
+    let mut infinite = true;
+    let mut delta = false;
+    if env {
+        let s = environment::sample(scene.textures, o, u1, u2);
+        wi = s.wi;
+        incident = s.radiance;
+        light_pdf = pmf * s.pdf;
+    } else if v.has(FEATURE_PUNCTUAL) {
+        let s = punctual::sample(scene.textures, o, pos);
+        wi = s.wi;
+        incident = s.incident;
+        light_pdf = pmf;
+        target = s.target;
+        infinite = s.infinite;
+        delta = true;
+    }
+    let (f, pdf_bsdf) = eval(v, mat, scene.textures, ns, wo, wi, front);
+    let mut event = LightEvent {
+        status: LIGHT_INVALID,
+        light: index,
+        triangle: kind,
+        point: target,
+        light_pdf,
+        bsdf_pdf: pdf_bsdf,
+        mis_weight: 0.0,
+        contribution: Vec3::ZERO,
+    };
+    let visible = (incident.x > 0.0) | (incident.y > 0.0) | (incident.z > 0.0);
+    if visible & (light_pdf > 0.0) & (pdf_bsdf > 0.0) & consistent(v, nf, ns, wi) {
+        let cos_i = dot(ns, wi);
+        let from = if dot(nf, wi) < 0.0 { offset_ray_origin(pos, error, -nf) } else { spawn };
+        let (shadow_dir, shadow_t) = if infinite { (wi, f32::MAX) } else { (target - from, 1.0 - SHADOW_EPSILON) };
+        rec.ray(RAY_SHADOW, from, shadow_dir, shadow_t);
+        let shadow = query_recorded(scene, p.traversal, from, shadow_dir, shadow_t, true, rec);
+        rec.traced(shadow.hit.triangle, shadow.hit.t, shadow.hit.nodes, shadow.hit.tests, shadow.restarts);
+        let weight = if delta { 1.0 } else { power_heuristic(light_pdf, pdf_bsdf) };
+        event.status = LIGHT_BLOCKED;
+        event.mis_weight = weight;
+        if !shadow.hit.is_hit() {
+            let added = path.beta * f * incident * (cos_i.abs() * weight / light_pdf);
+            path.radiance += added;
+            event.status = LIGHT_UNBLOCKED;
+            event.contribution = added;
+        }
+    }
+    rec.light(event);
 }
 
 /// Adds this pass's samples (`p.sample_start`, `p.sample_count`) of pixel (x, y) to its running

@@ -175,7 +175,48 @@ pub const TEXTURE_ONE_CHANNEL: u32 = 1;
 /// `TextureInfo::flags`: clamp coordinates to the edge instead of repeating the image.
 pub const TEXTURE_CLAMP: u32 = 2;
 
-/// One emissive triangle in the light-selection table.
+/// `Light::triangle` of an entry that is not a triangle: bit 31 set, the rest the emitter's first
+/// word in the texture buffer (`binding::TEXTURES`). With `LIGHT_ENVIRONMENT_BIT` also set it is
+/// the environment map (`environment`), otherwise a punctual light (`PunctualLight`, `punctual`).
+pub const LIGHT_NOT_TRIANGLE: u32 = 1 << 31;
+/// See `LIGHT_NOT_TRIANGLE`.
+pub const LIGHT_ENVIRONMENT_BIT: u32 = 1 << 30;
+/// The word-offset bits of a `LIGHT_NOT_TRIANGLE` entry.
+pub const LIGHT_OFFSET_MASK: u32 = (1 << 30) - 1;
+/// `RenderParams::environment_map` when the scene has no environment map (zero, so that
+/// default parameters have none).
+pub const NO_ENVIRONMENT_MAP: u32 = 0;
+
+/// Punctual light kinds (`PunctualLight::kind`), glTF `KHR_lights_punctual`.
+pub const PUNCTUAL_POINT: u32 = 0;
+pub const PUNCTUAL_SPOT: u32 = 1;
+pub const PUNCTUAL_DIRECTIONAL: u32 = 2;
+
+/// A point, spot or directional light as the integrator reads it: 16 words in the texture
+/// buffer after the textures (`punctual::load`), found through its light-table entry
+/// (`LIGHT_NOT_TRIANGLE | offset`). Delta lights: sampled by next-event estimation only.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(not(target_arch = "spirv"), derive(bytemuck::Pod, bytemuck::Zeroable))]
+pub struct PunctualLight {
+    /// Position (point, spot), in the scene's local frame.
+    pub position: [f32; 3],
+    pub kind: u32,
+    /// Unit direction the light travels (spot axis, directional), world space.
+    pub direction: [f32; 3],
+    pub _pad0: u32,
+    /// Colour × intensity: candela (point, spot) or lux (directional), linear RGB.
+    pub intensity: [f32; 3],
+    pub _pad1: u32,
+    /// Spot cone (glTF): attenuation = clamp(cos·scale + offset, 0, 1)², scale =
+    /// 1 / max(0.001, cos inner − cos outer), offset = −cos outer · scale; 0 and 1 otherwise.
+    pub cone_scale: f32,
+    pub cone_offset: f32,
+    pub _pad2: [u32; 2],
+}
+
+/// One emitter in the light-selection table: an emissive triangle, or (`LIGHT_NOT_TRIANGLE`) the
+/// environment map or a punctual light; one distribution by power over all of them.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 #[cfg_attr(not(target_arch = "spirv"), derive(bytemuck::Pod, bytemuck::Zeroable))]
@@ -282,8 +323,9 @@ pub struct RenderParams {
     pub sampler: u32,
     /// Entries of the live-pixel list (`render_list`; adaptive sampling).
     pub live_count: u32,
-    // Scalars, not an array: a uniform block aligns arrays to 16 bytes.
-    pub _pad2: u32,
+    /// 1 + the environment map's first word in the texture buffer (`environment`), or
+    /// `NO_ENVIRONMENT_MAP`.
+    pub environment_map: u32,
 }
 
 /// k-d traversal with a stack as deep as the tree (`kdtree`).

@@ -16,12 +16,14 @@
 pub use spirv_std::glam;
 
 pub mod camera;
+pub mod environment;
 pub mod features;
 pub mod integrator;
 pub mod kdtree;
 pub mod layout;
 pub mod material;
 pub mod numerics;
+pub mod punctual;
 pub mod raycast;
 pub mod record;
 pub mod rng;

@@ -42,6 +42,11 @@ pub struct ImageArgs {
     /// camera; none: frame the scene].
     #[arg(long, value_name = "NAME|INDEX")]
     pub camera: Option<String>,
+    /// Radiance of rays that leave the scene: linear r,g,b, or an equirectangular environment
+    /// map FILE (.exr or .pfm; strength 1, not rotated), which replaces the scene's [scene file,
+    /// else black].
+    #[arg(long, value_name = "R,G,B|FILE", allow_hyphen_values = true)]
+    pub environment: Option<String>,
     /// GPU adapter: the first whose name contains this (default: the first adapter).
     #[arg(long)]
     pub adapter: Option<String>,

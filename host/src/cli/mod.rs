@@ -95,7 +95,7 @@ fn print_json(report: &impl serde::Serialize) -> Result<()> {
 
 /// Flags over the scene's own settings over the defaults, and how to render; an error names the
 /// scene.
-fn settings(a: &ImageArgs, loaded: &Loaded, scene: &Path) -> Result<RenderSettings> {
+fn settings(a: &ImageArgs, loaded: &mut Loaded, scene: &Path) -> Result<RenderSettings> {
     let (lo, hi) = loaded.compiled.world_bounds();
     let context = || format!("{} with the command line's settings", scene.display());
     // A glTF camera's aspect ratio holds when the command line gives one side only.
@@ -107,6 +107,25 @@ fn settings(a: &ImageArgs, loaded: &Loaded, scene: &Path) -> Result<RenderSettin
             (None, Some(h)) => flags.width = Some(side(h as f64 * aspect)),
             _ => {}
         }
+    }
+    if let Some(e) = &a.environment {
+        // A file that exists, or a name that is not three numbers, is a map; the rest a colour.
+        let path = Path::new(e);
+        let colour = crate::settings::scene::parse_color(e);
+        match colour {
+            Ok(c) if !path.exists() => {
+                flags.environment = Some(c);
+                loaded.compiled.scene.environment_map = None;
+            }
+            Err(msg) if !path.exists() && e.split(',').count() == 3 => anyhow::bail!("--environment {e}: {msg}"),
+            _ => {
+                let map = crate::scene::EnvironmentMap::read(path, 1.0, [0.0; 3])
+                    .with_context(|| format!("--environment {e}"))?;
+                loaded.compiled.scene.environment_map = Some(map);
+                flags.environment = Some([0.0; 3]);
+            }
+        }
+        loaded.compiled.prepare_emitters();
     }
     let mut s = loaded.settings.overridden_by(&flags).resolve(lo, hi).with_context(context)?;
     // The camera placed against the scene (its distance in the local frame), before any work.

@@ -26,8 +26,8 @@ pub struct PixelArgs {
 
 pub fn run(a: PixelArgs) -> Result<ExitCode> {
     // The tree the CPU renders with, so the replay visits the nodes a CPU render does.
-    let loaded = load(&a.scene, Device::Cpu.build_settings(), a.image.camera.as_deref())?;
-    let s = settings(&a.image, &loaded, &a.scene)?;
+    let mut loaded = load(&a.scene, Device::Cpu.build_settings(), a.image.camera.as_deref())?;
+    let s = settings(&a.image, &mut loaded, &a.scene)?;
     let record = crate::debug::replay(&loaded.compiled, &s, a.x, a.y, a.sample)?;
     print_json(&record)?;
     Ok(ExitCode::SUCCESS)

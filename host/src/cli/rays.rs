@@ -44,9 +44,9 @@ pub fn run(r: RaysArgs) -> Result<ExitCode> {
         bail!("--repeats must be at least 1");
     }
     let build = r.device.build_settings();
-    let loaded = load(&r.scene, build, r.image.camera.as_deref())?;
+    let mut loaded = load(&r.scene, build, r.image.camera.as_deref())?;
+    let s = settings(&r.image, &mut loaded, &r.scene)?;
     let c = &loaded.compiled;
-    let s = settings(&r.image, &loaded, &r.scene)?;
     let g = match r.device {
         Device::Gpu => Some(Gpu::open(r.image.adapter.as_deref())?),
         Device::Cpu => None,

@@ -84,9 +84,9 @@ pub fn run(r: RenderArgs) -> Result<ExitCode> {
     // missing folder or a clash found at the end.
     let outputs: Vec<&Path> = std::iter::once(r.out.as_path()).chain(r.variance.as_deref()).collect();
     files::check_outputs(&outputs, &[&r.scene])?;
-    let loaded = load(&r.scene, r.device.build_settings(), r.image.camera.as_deref())?;
+    let mut loaded = load(&r.scene, r.device.build_settings(), r.image.camera.as_deref())?;
+    let s = settings(&r.image, &mut loaded, &r.scene)?;
     let c = &loaded.compiled;
-    let s = settings(&r.image, &loaded, &r.scene)?;
     let run = run_device(r.device, c, &s, &r.image)?;
     let img = &run.image;
     let pixels = img.mean();

@@ -32,9 +32,9 @@ struct VerifyReport<'a> {
 
 pub fn run(v: VerifyArgs) -> Result<ExitCode> {
     // One tree for both devices (the CPU's), so any difference is the devices', not the trees'.
-    let loaded = load(&v.scene, Device::Cpu.build_settings(), v.image.camera.as_deref())?;
+    let mut loaded = load(&v.scene, Device::Cpu.build_settings(), v.image.camera.as_deref())?;
+    let mut s = settings(&v.image, &mut loaded, &v.scene)?;
     let c = &loaded.compiled;
-    let mut s = settings(&v.image, &loaded, &v.scene)?;
     if s.time_limit_s.take().is_some() {
         // Both devices must render the same samples to be compared: a budget would stop them
         // at different spp.

@@ -7,7 +7,8 @@ use crate::settings::RenderSettings;
 use anyhow::{bail, Result};
 use rayon::prelude::*;
 use shared::features::{
-    FEATURES_ALL, FEATURE_ALPHA_MASKS, FEATURE_DIFFUSE, FEATURE_INDIRECT, FEATURE_MATERIALS, FEATURE_TEXTURES,
+    FEATURES_ALL, FEATURE_ALPHA_MASKS, FEATURE_DIFFUSE, FEATURE_EMITTERS, FEATURE_ENVIRONMENT, FEATURE_ENVIRONMENT_MAP,
+    FEATURE_INDIRECT, FEATURE_MANY_EMITTERS, FEATURE_MATERIALS, FEATURE_PUNCTUAL, FEATURE_TEXTURES,
     FEATURE_VERTEX_NORMALS,
 };
 use shared::glam::Vec4;
@@ -39,10 +40,10 @@ macro_rules! variants {
     };
 }
 variants!(
-    8 9 10 11 12 13 14 15 24 25 26 27 28 29 30 31
-    488 489 490 491 492 493 494 495 504 505 506 507 508 509 510 511
-    3592 3593 3594 3595 3596 3597 3598 3599 3608 3609 3610 3611 3612 3613 3614 3615
-    4072 4073 4074 4075 4076 4077 4078 4079 4088 4089 4090 4091 4092 4093 4094 4095
+    8 9 10 11 12 13 14 15 24 25 26 27 28 29 30 12319
+    488 489 490 491 492 493 494 495 504 505 506 507 508 509 510 12799
+    3592 3593 3594 3595 3596 3597 3598 3599 3608 3609 3610 3611 3612 3613 3614 15903
+    4072 4073 4074 4075 4076 4077 4078 4079 4088 4089 4090 4091 4092 4093 4094 16383
 );
 
 /// The feature bits the CPU compiles a variant for, covering `bits`: the bits outside the
@@ -51,15 +52,27 @@ variants!(
 /// compare). Textures, alpha masks and vertex normals (`SURFACE`) are all on or all off: a scene
 /// with any of them gets all three (one without the others costs a compare per hit), a scene
 /// with none gets code without their checks and copies.
+///
+/// The environment map and punctual lights (`NEW_LIGHTS`) have no variants of their own: a scene
+/// with either, or with every other light bit (`LIGHTS`), gets the variant with all of them,
+/// which keeps the table at 64.
 pub fn cpu_variant_bits(bits: u32) -> u32 {
     let surface = if bits & SURFACE != 0 { SURFACE } else { 0 };
-    let rest = (bits & FEATURES_ALL & !FEATURE_MATERIALS & !SURFACE) | surface;
+    let mut rest = (bits & FEATURES_ALL & !FEATURE_MATERIALS & !SURFACE) | surface;
+    if rest & NEW_LIGHTS != 0 || rest & LIGHTS == LIGHTS {
+        rest |= LIGHTS | NEW_LIGHTS;
+    }
     if bits & FEATURE_MATERIALS == FEATURE_DIFFUSE {
         rest | FEATURE_DIFFUSE
     } else {
         rest | FEATURE_MATERIALS
     }
 }
+
+/// Emitters, several of them, a constant environment and indirect light.
+const LIGHTS: u32 = FEATURE_EMITTERS | FEATURE_MANY_EMITTERS | FEATURE_ENVIRONMENT | FEATURE_INDIRECT;
+/// The environment map and punctual lights: on only together with all of `LIGHTS`.
+const NEW_LIGHTS: u32 = FEATURE_ENVIRONMENT_MAP | FEATURE_PUNCTUAL;
 
 /// The surface bits, on or off together in a CPU variant (`cpu_variant_bits`).
 const SURFACE: u32 = FEATURE_TEXTURES | FEATURE_ALPHA_MASKS | FEATURE_VERTEX_NORMALS;

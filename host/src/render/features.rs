@@ -7,8 +7,8 @@ use crate::settings::RenderSettings;
 use serde::Serialize;
 use shared::features::{
     FEATURES_ALL, FEATURE_ALPHA_MASKS, FEATURE_CONDUCTOR, FEATURE_DIELECTRIC, FEATURE_DIFFUSE, FEATURE_EMITTERS,
-    FEATURE_ENVIRONMENT, FEATURE_INDIRECT, FEATURE_MANY_EMITTERS, FEATURE_PLASTIC, FEATURE_PRINCIPLED,
-    FEATURE_TEXTURES, FEATURE_VERTEX_NORMALS,
+    FEATURE_ENVIRONMENT, FEATURE_ENVIRONMENT_MAP, FEATURE_INDIRECT, FEATURE_MANY_EMITTERS, FEATURE_PLASTIC,
+    FEATURE_PRINCIPLED, FEATURE_PUNCTUAL, FEATURE_TEXTURES, FEATURE_VERTEX_NORMALS,
 };
 use shared::layout::{
     Material, MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, MATERIAL_DIFFUSE, MATERIAL_PLASTIC, MATERIAL_PRINCIPLED,
@@ -45,7 +45,7 @@ pub struct Features {
 }
 
 /// Each bit's name, as `render --json` and the tests print them.
-pub const FEATURE_NAMES: [(u32, &str); 12] = [
+pub const FEATURE_NAMES: [(u32, &str); 14] = [
     (FEATURE_EMITTERS, "emitters"),
     (FEATURE_MANY_EMITTERS, "many_emitters"),
     (FEATURE_ENVIRONMENT, "environment"),
@@ -58,6 +58,8 @@ pub const FEATURE_NAMES: [(u32, &str); 12] = [
     (FEATURE_TEXTURES, "textures"),
     (FEATURE_ALPHA_MASKS, "alpha_masks"),
     (FEATURE_VERTEX_NORMALS, "vertex_normals"),
+    (FEATURE_ENVIRONMENT_MAP, "environment_map"),
+    (FEATURE_PUNCTUAL, "punctual_lights"),
 ];
 
 /// The materials that triangles use (a scene file may define more).
@@ -97,7 +99,10 @@ pub fn analyse(c: &Compiled, s: &RenderSettings) -> Features {
                 l.area as f64 * shared::vecmath::luminance(xyz(m.emission)) as f64
             })
             .sum::<f64>();
-    let environment = max_component(s.environment) > 0.0;
+    let map = scene.environment_map.is_some();
+    let punctual = !scene.punctual_lights.is_empty();
+    // The map replaces the constant colour.
+    let environment = !map && max_component(s.environment) > 0.0;
     let used = used_materials(scene);
     let diffuse = used.iter().any(|m| m.kind == MATERIAL_DIFFUSE);
     let conductor = used.iter().any(|m| m.kind == MATERIAL_CONDUCTOR);
@@ -127,11 +132,11 @@ pub fn analyse(c: &Compiled, s: &RenderSettings) -> Features {
     // (Every emissive triangle is in the light table: `emitters` counts them all.) A render
     // without indirect bounces still follows the BSDF sample to an emitter (MIS), so the bounce
     // limit does not enter.
-    let indirect = (emitters > 0 || environment) && reflects;
+    let indirect = (emitters > 0 || environment || map || punctual) && reflects;
     let mut bits = 0;
     for (on, bit) in [
         (emitters > 0, FEATURE_EMITTERS),
-        (emitters > 1, FEATURE_MANY_EMITTERS),
+        (c.light_count > 1, FEATURE_MANY_EMITTERS),
         (environment, FEATURE_ENVIRONMENT),
         (diffuse, FEATURE_DIFFUSE),
         (indirect, FEATURE_INDIRECT),
@@ -142,6 +147,8 @@ pub fn analyse(c: &Compiled, s: &RenderSettings) -> Features {
         (textures, FEATURE_TEXTURES),
         (alpha_masks, FEATURE_ALPHA_MASKS),
         (vertex_normals, FEATURE_VERTEX_NORMALS),
+        (map, FEATURE_ENVIRONMENT_MAP),
+        (punctual, FEATURE_PUNCTUAL),
     ] {
         if on {
             bits |= bit;
@@ -151,7 +158,13 @@ pub fn analyse(c: &Compiled, s: &RenderSettings) -> Features {
         bits,
         emitters,
         emitter_power,
-        environment: if environment { "constant" } else { "black" },
+        environment: if map {
+            "map"
+        } else if environment {
+            "constant"
+        } else {
+            "black"
+        },
         materials: [
             (diffuse, "diffuse"),
             (conductor, "conductor"),

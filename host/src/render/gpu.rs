@@ -260,7 +260,7 @@ impl Gpu {
         self.check_size("k-d nodes", std::mem::size_of_val(&c.tree.nodes[..]))?;
         self.check_size("leaf indices", std::mem::size_of_val(&c.tree.indices[..]))?;
         self.check_size("vertex attributes", std::mem::size_of_val(&c.scene.attributes[..]))?;
-        self.check_size("textures", std::mem::size_of_val(&c.scene.textures[..]))?;
+        self.check_size("textures", std::mem::size_of_val(&c.textures[..]))?;
         let params = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("params"),
             size: std::mem::size_of::<RenderParams>() as u64,
@@ -291,7 +291,7 @@ impl Gpu {
             },
             textures: self.storage(
                 "textures",
-                bytemuck::cast_slice(if c.scene.textures.is_empty() { &[0u32; 4][..] } else { &c.scene.textures }),
+                bytemuck::cast_slice(if c.textures.is_empty() { &[0u32; 4][..] } else { &c.textures }),
             ),
         })
     }

@@ -94,6 +94,12 @@ fn writer() -> String {
 
 /// The bytes of a `.kdc` file.
 pub fn encode(c: &Compiled, build_settings: &BuildSettings, settings: &SceneSettings) -> Result<Vec<u8>> {
+    if c.scene.environment_map.is_some() || !c.scene.punctual_lights.is_empty() {
+        bail!(
+            "compiled scenes (.kdc) do not store environment maps or punctual lights yet: render the scene file \
+             instead"
+        );
+    }
     let (s, t) = (&c.scene, &c.tree);
     let header = Header {
         writer: writer(),
@@ -427,6 +433,8 @@ impl Sections {
             attributes: self.attributes,
             textures: self.textures,
             texture_sources: h.texture_sources.clone(),
+            environment_map: None,
+            punctual_lights: Vec::new(),
         };
         Compiled { origin: DVec3::from(h.origin), ..Compiled::new(scene, tree) }
     }

@@ -23,17 +23,26 @@ use rayon::prelude::*;
 use shared::glam::{DVec3, Vec4};
 use shared::layout::{
     Light, RenderParams, TriBlock, Triangle, AOV_ALBEDO, AOV_COST, AOV_NORMAL, AOV_RADIANCE, BLOCK_WIDTH,
-    TRAVERSAL_FULL_STACK, TRAVERSAL_SHORT_STACK,
+    LIGHT_ENVIRONMENT_BIT, LIGHT_NOT_TRIANGLE, NO_ENVIRONMENT_MAP, TRAVERSAL_FULL_STACK, TRAVERSAL_SHORT_STACK,
 };
 use shared::numerics::MAX_EXTENT;
 use shared::scene::SceneView;
+use shared::vecmath::{luminance, xyz};
 
 /// A scene ready to render: geometry, materials, lights and its k-d tree.
 pub struct Compiled {
     pub scene: Scene,
     pub tree: KdTree,
-    /// The light table padded to at least one entry (GPU buffers cannot be empty).
+    /// The light table padded to at least one entry (GPU buffers cannot be empty): the
+    /// scene's emitting triangles, then its environment map and punctual lights, one
+    /// distribution by power over all of them (`prepare_emitters`).
     pub lights: Vec<Light>,
+    /// Entries of `lights` that are real.
+    pub light_count: u32,
+    /// The scene's texture buffer, then the environment map's and punctual lights' words.
+    pub textures: Vec<u32>,
+    /// `RenderParams::environment_map`: 1 + the map's first word in `textures`, or 0.
+    pub environment_map: u32,
     /// The triangles of `tree.indices` in blocks of `BLOCK_WIDTH`, for the SIMD leaf test
     /// (`shared::layout::TriBlock`); derived from the tree, never stored.
     pub blocks: Vec<TriBlock>,
@@ -54,13 +63,87 @@ impl Compiled {
         // A tree from a .kdc file of an older layout, or built elsewhere, gets the block layout
         // the CPU's leaf test relies on; a fresh build already has it.
         crate::kdbuild::align_leaves(&mut tree);
+        let blocks = leaf_blocks(&tree.indices, &scene.triangles);
+        let alpha_masks = features::uses_alpha_masks(&scene);
+        let mut c = Self {
+            scene,
+            tree,
+            lights: Vec::new(),
+            light_count: 0,
+            textures: Vec::new(),
+            environment_map: NO_ENVIRONMENT_MAP,
+            blocks,
+            origin: DVec3::ZERO,
+            alpha_masks,
+        };
+        c.prepare_emitters();
+        c
+    }
+
+    /// Builds the light table and the words after the textures from the scene's emitters: each
+    /// emitting triangle (power: area × luminance of its radiance), the environment map (power
+    /// 4π·π·r²·its mean luminance, r the radius of the tree box's bounding sphere, as pbrt-v4
+    /// gives infinite lights) and each punctual light (`PunctualLight::power`), picked in
+    /// proportion to power. Without an environment map or punctual lights the table is the
+    /// scene's own (the same bits as before they existed). Call again after changing them.
+    pub fn prepare_emitters(&mut self) {
+        let scene = &self.scene;
+        let mut textures = scene.textures.clone();
         let mut lights = scene.lights.clone();
+        self.environment_map = NO_ENVIRONMENT_MAP;
+        if scene.environment_map.is_some() || !scene.punctual_lights.is_empty() {
+            let radius = 0.5 * (self.tree.bounds_max - self.tree.bounds_min).as_dvec3().length();
+            let triangle_power: Vec<f64> = scene
+                .lights
+                .iter()
+                .map(|l| {
+                    let m = &scene.materials[scene.info[l.triangle as usize].material as usize];
+                    l.area as f64 * (luminance(xyz(m.emission)).max(1e-6) as f64)
+                })
+                .collect();
+            let mut power = triangle_power;
+            let mut kinds: Vec<u32> = scene.lights.iter().map(|l| l.triangle).collect();
+            let env_at = textures.len() as u32;
+            let env_power = scene
+                .environment_map
+                .as_ref()
+                .map(|m| 4.0 * std::f64::consts::PI * std::f64::consts::PI * radius * radius * m.mean_luminance());
+            let mut offset = env_at;
+            if let Some(m) = &scene.environment_map {
+                offset += shared::environment::words(m.width, m.height);
+                power.push(env_power.unwrap_or(0.0).max(1e-12));
+                kinds.push(LIGHT_NOT_TRIANGLE | LIGHT_ENVIRONMENT_BIT | env_at);
+            }
+            let punctual_at = offset;
+            for (i, l) in scene.punctual_lights.iter().enumerate() {
+                power.push(l.power(radius).max(1e-12));
+                kinds.push(LIGHT_NOT_TRIANGLE | (punctual_at + i as u32 * shared::punctual::WORDS));
+            }
+            let total: f64 = power.iter().sum();
+            let mut running = 0.0;
+            lights = Vec::with_capacity(power.len());
+            for (i, (&p, &kind)) in power.iter().zip(&kinds).enumerate() {
+                let pmf = p / total;
+                running += pmf;
+                let area = if i < scene.lights.len() { scene.lights[i].area } else { 0.0 };
+                let cdf = if i + 1 == power.len() { 1.0 } else { running as f32 };
+                lights.push(Light { triangle: kind, pmf: pmf as f32, cdf, area });
+            }
+            if let Some(m) = &scene.environment_map {
+                let pmf = lights[scene.lights.len()].pmf;
+                textures.extend(m.pack(pmf));
+                self.environment_map = env_at + 1;
+            }
+            for l in &scene.punctual_lights {
+                textures.extend_from_slice(bytemuck::cast_slice(&[l.layout()]));
+            }
+        }
+        self.light_count = lights.len() as u32;
         if lights.is_empty() {
             lights.push(Light::default());
         }
-        let blocks = leaf_blocks(&tree.indices, &scene.triangles);
-        let alpha_masks = features::uses_alpha_masks(&scene);
-        Self { scene, tree, lights, blocks, origin: DVec3::ZERO, alpha_masks }
+        self.lights = lights;
+        self.textures = textures;
     }
 
     /// The scene's bounds in world space (what a default camera frames).
@@ -92,7 +175,7 @@ impl Compiled {
             seed: s.seed,
             max_bounces: s.max_bounces,
             rr_start: s.rr_start,
-            light_count: self.scene.lights.len() as u32,
+            light_count: self.light_count,
             inv_width: 1.0 / s.width as f32,
             inv_height: 1.0 / s.height as f32,
             // Renderers resolve `Auto` first; left unresolved it means the full stack.
@@ -109,7 +192,7 @@ impl Compiled {
             persistent_rounds: u32::MAX,
             sampler: s.sampler.tag(),
             live_count: 0,
-            _pad2: 0,
+            environment_map: self.environment_map,
         })
     }
 
@@ -118,7 +201,7 @@ impl Compiled {
         RenderParams {
             bounds_min: self.tree.bounds_min.extend(0.0),
             bounds_max: self.tree.bounds_max.extend(0.0),
-            light_count: self.scene.lights.len() as u32,
+            light_count: self.light_count,
             ..Default::default()
         }
     }
@@ -134,7 +217,7 @@ impl Compiled {
             &self.scene.materials,
             &self.lights,
             &self.scene.attributes,
-            &self.scene.textures,
+            &self.textures,
         );
         view.alpha_masks = self.alpha_masks;
         view

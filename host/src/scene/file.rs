@@ -32,9 +32,10 @@ use toml::Spanned;
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SceneFile {
-    /// Radiance of rays that leave the scene, linear RGB (default black).
+    /// Radiance of rays that leave the scene: a linear RGB colour (default black) or an
+    /// environment map `{ file, strength, rotate }`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub environment: Option<Color>,
+    pub environment: Option<Spanned<Environment>>,
     #[serde(default)]
     pub camera: CameraSection,
     #[serde(default)]
@@ -44,6 +45,121 @@ pub struct SceneFile {
     pub materials: BTreeMap<String, MaterialSection>,
     #[serde(rename = "mesh", default)]
     pub meshes: Vec<MeshSection>,
+    /// Punctual lights (glTF `KHR_lights_punctual`).
+    #[serde(rename = "light", default, skip_serializing_if = "Vec::is_empty")]
+    pub lights: Vec<Spanned<LightSection>>,
+}
+
+/// `environment = [r, g, b]` or `environment = { file = "sky.exr", strength = 1.0, rotate = [x, y, z] }`.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum Environment {
+    Color(Color),
+    Map(EnvironmentSection),
+}
+
+impl<'de> Deserialize<'de> for Environment {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        use serde::de::Error;
+        let v = toml::Value::deserialize(d)?;
+        match v {
+            toml::Value::Array(_) => {
+                let numbers: Vec<f64> = v.try_into().map_err(|e: toml::de::Error| D::Error::custom(e.message()))?;
+                Color::try_from(numbers).map(Environment::Color).map_err(D::Error::custom)
+            }
+            toml::Value::Table(_) => v
+                .try_into()
+                .map(Environment::Map)
+                .map_err(|e: toml::de::Error| D::Error::custom(format!("environment map: {}", e.message().trim_end()))),
+            other => Err(D::Error::custom(format!(
+                "environment must be a colour [r, g, b] or a map {{ file = \"sky.exr\", strength = 1.0, rotate = [0, 0, 0] }}, not a {}",
+                other.type_str()
+            ))),
+        }
+    }
+}
+
+/// An environment map: an equirectangular OpenEXR (`.exr`) or PFM file (relative to the scene
+/// file), a factor on its radiance, and Euler angles in degrees (Mitsuba's `to_world` rotation:
+/// about X, then Y, then Z).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EnvironmentSection {
+    pub file: String,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub strength: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rotate: Option<Point>,
+}
+
+/// A punctual light: `type` "point", "spot" or "directional"; `color` (default white) times
+/// `intensity` (candela for point and spot, lux for directional; default 1); `position`
+/// (point, spot; default origin), `direction` it shines along (spot, directional; default −Y);
+/// spot cone angles in radians as glTF gives them (defaults 0 and π/4).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LightSection {
+    #[serde(rename = "type")]
+    pub kind: LightKind,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub position: Option<Point>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub direction: Option<Point>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub color: Option<Color>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub intensity: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub inner_cone_angle: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub outer_cone_angle: Option<f64>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LightKind {
+    Point,
+    Spot,
+    Directional,
+}
+
+impl LightSection {
+    /// The light, checked, in world coordinates.
+    pub fn light(&self) -> Result<crate::scene::PunctualLight> {
+        use crate::scene::PunctualLight;
+        let position = self.position.map_or(DVec3::ZERO, Point::dvec3);
+        let direction = self.direction.map_or(DVec3::NEG_Y, Point::dvec3);
+        let color = self.color.map_or(Vec3::ONE, |c| vec3_of(c.0));
+        let intensity = self.intensity.unwrap_or(1.0);
+        if !(intensity.is_finite() && intensity >= 0.0 && intensity <= f32::MAX as f64) {
+            bail!("intensity {intensity} must be finite and non-negative");
+        }
+        let intensity = intensity as f32;
+        let cone = self.inner_cone_angle.is_some() || self.outer_cone_angle.is_some();
+        if cone && self.kind != LightKind::Spot {
+            bail!("inner_cone_angle and outer_cone_angle apply to spot lights only");
+        }
+        if self.position.is_some() && self.kind == LightKind::Directional {
+            bail!("a directional light has no position (give its direction)");
+        }
+        if self.direction.is_some() && self.kind == LightKind::Point {
+            bail!("a point light has no direction");
+        }
+        let l = match self.kind {
+            LightKind::Point => PunctualLight::point(position, color, intensity),
+            LightKind::Spot => PunctualLight::spot(
+                position,
+                direction,
+                color,
+                intensity,
+                self.inner_cone_angle.unwrap_or(0.0) as f32,
+                self.outer_cone_angle.unwrap_or(std::f64::consts::FRAC_PI_4) as f32,
+            ),
+            LightKind::Directional => PunctualLight::directional(direction, color, intensity),
+        };
+        l.check()?;
+        Ok(l)
+    }
 }
 
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
@@ -376,7 +492,10 @@ pub fn settings_of(file: &SceneFile) -> SceneSettings {
         target: c.target.map(|p| p.0),
         up: c.up.map(|p| p.0),
         fov_deg: c.fov.map(|f| f.0 as f32),
-        environment: file.environment.map(|e| f32x3(e.0)),
+        environment: file.environment.as_ref().and_then(|e| match e.get_ref() {
+            Environment::Color(c) => Some(f32x3(c.0)),
+            Environment::Map(_) => None,
+        }),
     }
 }
 
@@ -492,7 +611,35 @@ pub fn resolve(path: &Path, text: &str, file: &SceneFile, files: &dyn Files) -> 
     if !attributes.is_empty() {
         attributes.resize(triangles.len(), WorldAttributes::default());
     }
-    let scene = WorldScene { triangles, material_of, materials, material_names: names, attributes, textures };
+    let mut environment_map = None;
+    if let Some(e) = &file.environment {
+        if let Environment::Map(m) = e.get_ref() {
+            let map_path = dir.join(&m.file);
+            let strength = m.strength.unwrap_or(1.0);
+            if !(strength.is_finite() && (0.0..=f32::MAX as f64).contains(&strength)) {
+                bail!("{}: environment map strength {strength} must be finite and non-negative", at(e.span()));
+            }
+            let rotate = m.rotate.map_or([0.0; 3], |r| r.0);
+            environment_map = Some(
+                crate::scene::EnvironmentMap::read(&map_path, strength as f32, rotate)
+                    .with_context(|| format!("{}: environment map {:?}", at(e.span()), m.file))?,
+            );
+        }
+    }
+    let mut punctual_lights = Vec::new();
+    for l in &file.lights {
+        punctual_lights.push(l.get_ref().light().map_err(|err| anyhow!("{}: [[light]]: {err}", at(l.span())))?);
+    }
+    let scene = WorldScene {
+        triangles,
+        material_of,
+        materials,
+        material_names: names,
+        attributes,
+        textures,
+        environment_map,
+        punctual_lights,
+    };
     Ok(Resolved { scene, settings: settings_of(file), warnings })
 }
 
@@ -533,6 +680,11 @@ pub fn rebase_meshes(file: &mut SceneFile, scene_path: &Path, out_path: &Path) -
     for m in file.materials.values_mut() {
         for t in [&mut m.albedo_texture, &mut m.base_color_texture].into_iter().flatten() {
             *t = Spanned::new(0..0, rebase(t.get_ref())?);
+        }
+    }
+    if let Some(e) = &mut file.environment {
+        if let Environment::Map(m) = e.get_mut() {
+            m.file = rebase(&m.file)?;
         }
     }
     Ok(())
@@ -576,11 +728,15 @@ pub fn with_settings(mut file: SceneFile, s: &SceneSettings) -> Result<SceneFile
         sampler: s.sampler,
         time_limit: s.time_limit_s.map(Seconds::try_from).transpose().map_err(|e| anyhow!(e))?,
     };
-    file.environment = s
-        .environment
-        .map(|v| Color::try_from(vec![tidy(v[0]), tidy(v[1]), tidy(v[2])]))
-        .transpose()
-        .map_err(|e| anyhow!(e))?;
+    // A map stays as the file gives it; a colour is stated in full.
+    if !matches!(file.environment.as_ref().map(|e| e.get_ref()), Some(Environment::Map(_))) {
+        file.environment = s
+            .environment
+            .map(|v| Color::try_from(vec![tidy(v[0]), tidy(v[1]), tidy(v[2])]))
+            .transpose()
+            .map_err(|e| anyhow!(e))?
+            .map(|c| Spanned::new(0..0, Environment::Color(c)));
+    }
     Ok(file)
 }
 

@@ -6,6 +6,7 @@
 //! from, kept in f64 until it is placed (`WorldScene`). Vertex attributes (`WorldAttributes`:
 //! vertex normals and texture coordinates) and textures (`texture`) travel with the triangles.
 pub mod coating;
+pub mod environment;
 pub mod file;
 pub mod gltf_file;
 pub mod local_frame;
@@ -13,6 +14,8 @@ pub mod obj;
 pub mod procedural;
 pub mod texture;
 pub mod transform;
+
+pub use environment::{EnvironmentMap, PunctualLight};
 
 use anyhow::{bail, Result};
 use shared::glam::{DVec3, Vec3, Vec4};
@@ -43,6 +46,10 @@ pub struct Scene {
     /// file, in table order.
     pub textures: Vec<u32>,
     pub texture_sources: Vec<String>,
+    /// The environment map, if any (`environment`; replaces the constant environment colour).
+    pub environment_map: Option<EnvironmentMap>,
+    /// Point, spot and directional lights, positions in this scene's local frame.
+    pub punctual_lights: Vec<PunctualLight>,
 }
 
 /// A triangle in world coordinates, f64 as read and placed.
@@ -95,6 +102,10 @@ pub struct WorldScene {
     pub attributes: Vec<WorldAttributes>,
     /// The images the materials' texture slots name.
     pub textures: texture::TextureSet,
+    /// The environment map, if any.
+    pub environment_map: Option<EnvironmentMap>,
+    /// Point, spot and directional lights, positions in world coordinates (f64).
+    pub punctual_lights: Vec<PunctualLight>,
 }
 
 impl WorldScene {
@@ -111,6 +122,10 @@ impl WorldScene {
             attributes,
             &self.textures.textures,
         )?;
+        let mut scene = scene;
+        scene.environment_map = self.environment_map;
+        scene.punctual_lights =
+            self.punctual_lights.into_iter().map(|l| PunctualLight { position: l.position - origin, ..l }).collect();
         Ok((scene, origin))
     }
 }
@@ -281,6 +296,8 @@ impl Scene {
             attributes: kept_attributes,
             textures: if textures.is_empty() { Vec::new() } else { texture::pack(textures)? },
             texture_sources: textures.iter().map(|t| t.source.display().to_string()).collect(),
+            environment_map: None,
+            punctual_lights: Vec::new(),
         };
         scene.refresh_coating_tables();
         Ok(scene)

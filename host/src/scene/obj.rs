@@ -617,7 +617,15 @@ pub fn parse_mesh(path: &Path, bytes: &[u8], files: &dyn Files) -> Result<Mesh> 
         ));
     }
     Ok(Mesh {
-        scene: WorldScene { triangles, material_of, materials: mats, material_names: names, attributes, textures },
+        scene: WorldScene {
+            triangles,
+            material_of,
+            materials: mats,
+            material_names: names,
+            attributes,
+            textures,
+            ..Default::default()
+        },
         warnings,
     })
 }

@@ -56,8 +56,9 @@ pub struct SceneSettings {
     /// Vertical field of view in degrees [scene file, else 39.3076].
     #[arg(long = "fov")]
     pub fov_deg: Option<f32>,
-    /// Radiance of rays that leave the scene, linear r,g,b [scene file, else black].
-    #[arg(long, value_parser = parse_color, value_name = "R,G,B")]
+    /// Radiance of rays that leave the scene, linear r,g,b [scene file, else black]. On the
+    /// command line `--environment` (`cli::args::ImageArgs`) also takes an environment map file.
+    #[arg(skip)]
     pub environment: Option<[f32; 3]>,
 }
 

@@ -742,6 +742,9 @@ pub fn parse(path: &Path, bytes: &[u8], files: &dyn Files) -> Result<GltfScene> 
         material_names: names,
         attributes,
         textures,
+        environment_map: None,
+        // KHR_lights_punctual lights are parsed (`lights`) but not yet turned into these.
+        punctual_lights: Vec::new(),
     };
     Ok(GltfScene { mesh: Mesh { scene, warnings }, cameras, lights })
 }

@@ -1,0 +1,197 @@
+//! A glTF metallic-roughness material onto `principled`: its textures' image bytes, factors and
+//! channels, emission, transmission, ior and alpha.
+#[allow(unused_imports)]
+use super::*;
+
+/// Reads an image's bytes when first needed.
+pub(super) type ImageBytes<'a> = Box<dyn FnOnce() -> Result<Vec<u8>> + 'a>;
+
+/// The image bytes of a texture and a name for it (its file, or `file.gltf#image3`).
+pub(super) fn image_source<'a>(
+    path: &'a Path,
+    buffers: &'a [Vec<u8>],
+    files: &'a dyn Files,
+    image: &::gltf::Image,
+) -> (PathBuf, ImageBytes<'a>) {
+    match image.source() {
+        ::gltf::image::Source::Uri { uri, .. } if !uri.starts_with("data:") => {
+            let full = path.parent().unwrap_or(Path::new("")).join(percent_decode(uri));
+            let uri = uri.to_string();
+            let f = full.clone();
+            (
+                full,
+                Box::new(move || {
+                    files
+                        .read(&f)
+                        .map_err(|e| anyhow!("{}: image {uri:?}: cannot read {}: {e}", path.display(), f.display()))
+                }),
+            )
+        }
+        ::gltf::image::Source::Uri { uri, .. } => {
+            let name = PathBuf::from(format!("{}#image{}", path.display(), image.index()));
+            let uri = uri.to_string();
+            let what = format!("image {}", image.index());
+            (name, Box::new(move || read_uri(path, &uri, files, &what)))
+        }
+        ::gltf::image::Source::View { view, .. } => {
+            let name = PathBuf::from(format!("{}#image{}", path.display(), image.index()));
+            let (b, start, len, index) = (view.buffer().index(), view.offset(), view.length(), image.index());
+            (
+                name,
+                Box::new(move || {
+                    buffers
+                        .get(b)
+                        .and_then(|data| data.get(start..start.checked_add(len)?))
+                        .map(<[u8]>::to_vec)
+                        .ok_or_else(|| {
+                            anyhow!("{}: image {index}: its buffer view lies outside buffer {b}", path.display())
+                        })
+                }),
+            )
+        }
+    }
+}
+
+/// A glTF material as a principled one (module docs; README "glTF scenes").
+#[allow(clippy::too_many_arguments)]
+pub(super) fn material(
+    path: &Path,
+    _document: &::gltf::Document,
+    buffers: &[Vec<u8>],
+    files: &dyn Files,
+    m: &::gltf::Material,
+    label: &str,
+    textures: &mut TextureSet,
+    notes: &mut BTreeSet<String>,
+) -> Result<MaterialOut> {
+    let p = path.display();
+    let pbr = m.pbr_metallic_roughness();
+    let base = pbr.base_color_factor();
+    let strength = m.emissive_strength().unwrap_or(1.0);
+    let emissive = m.emissive_factor().map(|e| e * strength);
+    let transmission = m.transmission();
+    let check = |what: &str, x: f32, range: std::ops::RangeInclusive<f32>| -> Result<f32> {
+        if x.is_finite() && range.contains(&x) {
+            Ok(x)
+        } else {
+            bail!("{p}: {label}: {what} {x} is outside {range:?}")
+        }
+    };
+    for (i, c) in base.iter().enumerate() {
+        check(&format!("baseColorFactor[{i}]"), *c, 0.0..=1.0)?;
+    }
+    for (i, c) in emissive.iter().enumerate() {
+        check(&format!("emissiveFactor[{i}] × emissive strength"), *c, 0.0..=65504.0)?;
+    }
+    let pr = Principled {
+        base_color: Vec3::new(base[0], base[1], base[2]),
+        metallic: check("metallicFactor", pbr.metallic_factor(), 0.0..=1.0)?,
+        roughness: check("roughnessFactor", pbr.roughness_factor(), 0.0..=1.0)?,
+        transmission: check("transmission", transmission.as_ref().map_or(0.0, |t| t.transmission_factor()), 0.0..=1.0)?,
+        ior: check("ior", m.ior().unwrap_or(1.5), 1.0..=10.0)?.max(1.0 + 1e-4),
+    };
+    let mut mat = principled(&pr, Vec3::from(emissive));
+    // Textures: each slot's texture info with the kind it is read as.
+    let bits = |v: [f32; 3]| v.map(f32::to_bits);
+    let mut slots: Vec<(&str, ::gltf::texture::Info, usize, Kind)> = Vec::new();
+    if let Some(t) = pbr.base_color_texture() {
+        slots.push(("baseColorTexture", t, TEXTURE_ALBEDO, Kind::ColourTimes(bits([base[0], base[1], base[2]]))));
+    }
+    if let Some(t) = pbr.metallic_roughness_texture() {
+        slots.push((
+            "metallicRoughnessTexture",
+            t.clone(),
+            TEXTURE_ROUGHNESS,
+            Kind::ChannelTimes(1, pr.roughness.to_bits()),
+        ));
+        slots.push(("metallicRoughnessTexture", t, TEXTURE_METALLIC, Kind::ChannelTimes(2, pr.metallic.to_bits())));
+    }
+    if let Some(t) = m.emissive_texture() {
+        if emissive.iter().any(|e| *e > 0.0) {
+            slots.push(("emissiveTexture", t, TEXTURE_EMISSION, Kind::ColourTimes(bits(emissive))));
+        }
+    }
+    // Alpha: MASK (and BLEND, as MASK at 0.5) cut out where baseColor alpha × factor < cutoff.
+    let mut invisible = false;
+    let mode = m.alpha_mode();
+    if mode != ::gltf::material::AlphaMode::Opaque {
+        let cutoff = if mode == ::gltf::material::AlphaMode::Mask { m.alpha_cutoff().unwrap_or(0.5) } else { 0.5 };
+        if mode == ::gltf::material::AlphaMode::Blend {
+            notes.insert(format!(
+                "{p}: {label}: alphaMode BLEND rendered as MASK at alpha 0.5 (no partial transparency)"
+            ));
+        }
+        if cutoff > 0.0 && cutoff.is_finite() {
+            match pbr.base_color_texture() {
+                Some(t) => {
+                    // The mask reads alpha · factor · 0.5/cutoff against ALPHA_CUTOFF (0.5).
+                    let scale = base[3] * ALPHA_CUTOFF / cutoff;
+                    slots.push(("baseColorTexture (alpha)", t, TEXTURE_ALPHA, Kind::ChannelTimes(3, scale.to_bits())));
+                }
+                None => invisible = base[3] < cutoff,
+            }
+        }
+    }
+    let uv = slots.first().map_or(UvTransform::IDENTITY, |s| UvTransform::of(&s.1));
+    for (key, info, slot, kind) in &slots {
+        if UvTransform::of(info) != uv {
+            notes.insert(format!(
+                "{p}: {label}: {key} has a KHR_texture_transform of its own; all its textures use the {}'s",
+                slots[0].0
+            ));
+        }
+        let set = info.texture_transform().and_then(|t| t.tex_coord()).unwrap_or(info.tex_coord());
+        if set != 0 {
+            notes.insert(format!(
+                "{p}: {label}: {key} reads TEXCOORD_{set}; kdtrace reads TEXCOORD_0 for every texture"
+            ));
+        }
+        let texture = info.texture();
+        let sampler = texture.sampler();
+        use ::gltf::texture::WrappingMode as W;
+        let (s, t) = (sampler.wrap_s(), sampler.wrap_t());
+        let clamp = s == W::ClampToEdge && t == W::ClampToEdge;
+        if !clamp && (s != W::Repeat || t != W::Repeat) {
+            notes.insert(format!(
+                "{p}: {label}: {key}: sampler wrapping {s:?}/{t:?} is rendered as Repeat (kdtrace wraps both axes alike, \
+                 repeat or clamp)"
+            ));
+        }
+        let image = texture.source();
+        let (name, bytes) = image_source(path, buffers, files, &image);
+        let wanted_by = format!("{p}: {label}: {key}");
+        mat.textures[*slot] = textures.load_bytes(&name, bytes, *kind, clamp, &wanted_by)?;
+    }
+    if mat.textures[TEXTURE_EMISSION] != NO_TEXTURE {
+        let mean = textures.textures[mat.textures[TEXTURE_EMISSION] as usize - 1].mean_rgb();
+        mat.emission = Vec3::from(mean).extend(0.0);
+    }
+    if let Some(n) = m.normal_texture() {
+        let scale = n.scale();
+        if !scale.is_finite() {
+            bail!("{p}: {label}: normalTexture scale {scale} is not finite");
+        }
+        if n.tex_coord() != 0 {
+            notes.insert(format!(
+                "{p}: {label}: normalTexture reads TEXCOORD_{}; kdtrace reads TEXCOORD_0",
+                n.tex_coord()
+            ));
+        }
+        let texture = n.texture();
+        use ::gltf::texture::WrappingMode as W;
+        let clamp = texture.sampler().wrap_s() == W::ClampToEdge && texture.sampler().wrap_t() == W::ClampToEdge;
+        let (name, bytes) = image_source(path, buffers, files, &texture.source());
+        let wanted_by = format!("{p}: {label}: normalTexture");
+        mat.textures[TEXTURE_NORMAL] = textures.load_bytes(&name, bytes, Kind::Linear, clamp, &wanted_by)?;
+        mat.eta.w = scale;
+    }
+    if transmission.as_ref().is_some_and(|t| t.transmission_texture().is_some()) {
+        notes.insert(format!("{p}: {label}: transmissionTexture ignored (the factor is used)"));
+    }
+    if m.volume().is_some() {
+        notes.insert(format!(
+            "{p}: {label}: KHR_materials_volume: absorption (attenuationColor, attenuationDistance) is not rendered"
+        ));
+    }
+    Ok(MaterialOut { material: mat, uv, invisible })
+}

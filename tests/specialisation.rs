@@ -285,6 +285,13 @@ fn every_variant_renders_the_generic_image() {
                 | FEATURE_ENVIRONMENT_MAP
                 | FEATURE_PUNCTUAL,
         ),
+        (
+            // Fractional metallic and transmission: every lobe's weight is a rounded product.
+            "principled block, partly metal, partly transmissive",
+            block_of(gltf(0.8, 0.3, 0.5, 0.4), None),
+            settings(outside.0, outside.1, 0.3, 4),
+            FEATURE_EMITTERS | FEATURE_ENVIRONMENT | FEATURE_DIFFUSE | FEATURE_PRINCIPLED | FEATURE_INDIRECT,
+        ),
     ];
     // Every bit is left out somewhere.
     let covered = cases.iter().fold(0, |acc, c| acc | (FEATURES_ALL & !c.3));

@@ -48,7 +48,9 @@ fn lobe_probabilities(m: &Material, o: Vec3, eta: f32) -> (f32, f32, f32) {
     let specular = metallic * luminance(schlick(base, o.z)) + dielectric * f_n;
     let entering = dielectric * (1.0 - f_n) * luminance(base);
     let (diffuse, through) = (entering * (1.0 - transmission), entering * transmission);
-    let sum = specular + diffuse + through;
+    // Diffuse and transmission share what enters: their sum is `entering` (added apart, Mesa
+    // regroups the three terms and rounds differently from the CPU).
+    let sum = specular + entering;
     if sum <= 0.0 {
         return (0.0, 0.0, 0.0);
     }
@@ -75,7 +77,7 @@ fn eval_local(m: &Material, o: Vec3, i: Vec3, eta: f32) -> (Vec3, f32) {
         let spec = ggx_d(a, h) * ggx_g1(a, o, h) * ggx_g1(a, i, h) / (4.0 * o.z * i.z);
         let tint = schlick(base, oh) * metallic + Vec3::splat((1.0 - metallic) * fresnel_dielectric(oh, eta).0);
         let value = tint * spec + base * (entering * (1.0 - transmission) * INV_PI);
-        let pdf = p_spec * ggx_visible_pdf(a, o, h) + p_diff * i.z * INV_PI;
+        let pdf = p_spec * ggx_visible_pdf(a, o, h) + p_diff * (i.z * INV_PI);
         return (value, pdf);
     }
     if (i.z == 0.0) | (p_through <= 0.0) {

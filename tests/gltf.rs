@@ -10,6 +10,7 @@ use kdtrace::kdbuild::BuildSettings;
 use kdtrace::render::load::load_with_camera;
 use kdtrace::render::{cpu, gpu, Compiled, Rendered};
 use kdtrace::scene::texture::srgb_to_linear;
+use kdtrace::scene::EnvironmentMap;
 use kdtrace::settings::{Aov, RenderSettings, SceneSettings};
 use kdtrace::Loaded;
 use shared::glam::{DVec3, Vec4};
@@ -69,12 +70,9 @@ fn linear(c: [u8; 3]) -> [f32; 3] {
     c.map(|v| srgb_to_linear(v as f64 / 255.0) as f32)
 }
 
-/// Every sample loads and renders without NaN or Inf, the same bits on the CPU and lavapipe for
-/// the albedo and normal images (texture lookups, UVs, normals, cut-outs, cameras). Radiance is
-/// compared within 1e-5 relative, under a sky and in the dark (the samples' own emitters): a
-/// lit non-metallic principled surface differs from the CPU by an ulp or so on lavapipe, already
-/// so on main for any principled material from an OBJ or a scene file (not glTF's doing; see the
-/// report of the glTF branch).
+/// Every sample loads and renders without NaN or Inf, the same bits on the CPU and lavapipe:
+/// the albedo and normal images (texture lookups, UVs, normals, cut-outs, cameras) and radiance
+/// under a constant sky, under an environment map and in the dark (the samples' own emitters).
 #[test]
 fn every_sample_renders_on_the_cpu_and_lavapipe_alike() {
     let g = gpu::Gpu::lavapipe().unwrap();
@@ -90,30 +88,38 @@ fn every_sample_renders_on_the_cpu_and_lavapipe_alike() {
         let lit =
             settings(&l, SceneSettings { environment: Some([0.8, 0.9, 1.0]), bounces: Some(3), ..small(20, 20, 2) });
         let dark = RenderSettings { environment: shared::glam::Vec3::ZERO, ..lit };
-        for (what, s, exact) in [
-            ("albedo", RenderSettings { aov: Aov::Albedo, ..lit }, true),
-            ("normal", RenderSettings { aov: Aov::Normal, ..lit }, true),
-            ("dark radiance", dark, false),
-            ("lit radiance", lit, false),
+        let mut mapped = load(&data(file), None).compiled;
+        mapped.scene.environment_map = Some(sky_map());
+        mapped.prepare_emitters();
+        for (what, c, s) in [
+            ("albedo", &l.compiled, RenderSettings { aov: Aov::Albedo, ..lit }),
+            ("normal", &l.compiled, RenderSettings { aov: Aov::Normal, ..lit }),
+            ("dark radiance", &l.compiled, dark),
+            ("lit radiance", &l.compiled, lit),
+            ("radiance under a map", &mapped, dark),
         ] {
-            let a = cpu::render(&l.compiled, &s, &none).unwrap();
+            let a = cpu::render(c, &s, &none).unwrap();
             assert!(a.sum.iter().chain(&a.sum_sq).all(|p| p.is_finite()), "{file} {what}: NaN or Inf on the CPU");
-            let b = g.render(&l.compiled, &s, &none).unwrap();
-            assert!(b.sum.iter().all(|p| p.is_finite()), "{file} {what}: NaN or Inf on lavapipe");
-            if exact {
-                assert!(bits(&a) == bits(&b), "{file} {what}: lavapipe's image differs from the CPU's");
-            } else {
-                if what == "lit radiance" {
-                    assert!(a.mean().iter().flatten().any(|&v| v > 0.0), "{file}: a black image");
-                }
-                for (p, q) in a.mean().iter().zip(b.mean()) {
-                    for k in 0..3 {
-                        assert!((p[k] - q[k]).abs() <= 1e-5 * p[k].abs().max(1e-3), "{file} {what}: {p:?} vs {q:?}");
-                    }
-                }
+            if what != "dark radiance" {
+                assert!(a.mean().iter().flatten().any(|&v| v > 0.0), "{file} {what}: a black image");
             }
+            let b = g.render(c, &s, &none).unwrap();
+            assert!(bits(&a) == bits(&b), "{file} {what}: lavapipe's image differs from the CPU's");
         }
     }
+}
+
+/// A small sky: brighter overhead, with a bright patch, rotated off the axes.
+fn sky_map() -> EnvironmentMap {
+    let (w, h) = (16u32, 8u32);
+    let texels = (0..w * h)
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            let b = if (x, y) == (5, 2) { 30.0 } else { 0.2 + 0.15 * (h - y) as f32 + 0.03 * x as f32 };
+            [b, 0.9 * b, 0.7 * b]
+        })
+        .collect();
+    EnvironmentMap::new(w, h, texels, 1.0, [0.0, 40.0, 0.0], "sky".into()).unwrap()
 }
 
 /// TextureCoordinateTest: each quad shows its colour (baseColorFactor × the white template) and

@@ -557,3 +557,107 @@ fn scene_files_export_and_compile_carry_gltf_meshes() {
     assert!(text.contains("quad.gltf") && text.contains("eye = [0.0, 0.0, 3.0]"), "{text}");
     let _: &Compiled = &load(&gltf, None).compiled;
 }
+
+/// A glTF file: the square from (−1, −1) to (1, 1) at z = 0 in a grey rough dielectric, seen by a
+/// camera at (0, 0, 3), and one KHR_lights_punctual light `light` (a JSON object) on a node with
+/// the members `light_node` (its transform).
+fn lit_quad_gltf(light: &str, light_node: &str) -> String {
+    let positions: [[f32; 3]; 4] = [[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [1.0, 1.0, 0.0], [-1.0, 1.0, 0.0]];
+    let mut buf: Vec<u8> = positions.iter().flatten().flat_map(|p| p.to_le_bytes()).collect();
+    for i in [0u16, 1, 2, 0, 2, 3] {
+        buf.extend(i.to_le_bytes());
+    }
+    format!(
+        r#"{{
+  "asset": {{"version": "2.0"}},
+  "extensionsUsed": ["KHR_lights_punctual"],
+  "extensions": {{"KHR_lights_punctual": {{"lights": [{light}]}}}},
+  "scene": 0,
+  "scenes": [{{"nodes": [0, 1, 2]}}],
+  "nodes": [{{"mesh": 0}}, {{"camera": 0, "translation": [0, 0, 3]}},
+            {{"extensions": {{"KHR_lights_punctual": {{"light": 0}}}}, {light_node}}}],
+  "cameras": [{{"type": "perspective", "perspective": {{"yfov": 0.6, "znear": 0.01}}}}],
+  "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0}}, "indices": 1, "material": 0}}]}}],
+  "materials": [{{"pbrMetallicRoughness": {{"baseColorFactor": [0.5, 0.5, 0.5, 1], "metallicFactor": 0, "roughnessFactor": 1}}}}],
+  "buffers": [{{"byteLength": {len}, "uri": "data:application/octet-stream;base64,{data}"}}],
+  "bufferViews": [{{"buffer": 0, "byteOffset": 0, "byteLength": 48}}, {{"buffer": 0, "byteOffset": 48, "byteLength": 12}}],
+  "accessors": [
+    {{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [-1, -1, 0], "max": [1, 1, 0]}},
+    {{"bufferView": 1, "componentType": 5123, "count": 6, "type": "SCALAR"}}
+  ]
+}}"#,
+        len = buf.len(),
+        data = b64(&buf),
+    )
+}
+
+/// KHR_lights_punctual: a point light 1 above the quad's centre, a directional light tilted 60°
+/// by its node's rotation and a spot light render the radiance the quad's BSDF gives their
+/// analytic irradiance (I/d², E·cos θ; direct light only, at the centre pixel); a spot turned
+/// away leaves the quad black; a scene file's placement moves the file's light with its mesh.
+#[test]
+fn punctual_lights_light_the_quad_as_their_nodes_place_them() {
+    let dir = folder("lights");
+    // The quad's value f(wo = +z, wi) · cos θ_i, from its own material.
+    let radiance = |l: &Loaded, wi: shared::glam::Vec3| {
+        let m = l.compiled.scene.materials[0];
+        let z = shared::glam::Vec3::Z;
+        let (f, _) = shared::material::eval(shared::features::Variant::GENERIC_SPEC, &m, &[], z, z, wi, true);
+        f * wi.z
+    };
+    let centre = |path: &Path| {
+        let l = load(path, None);
+        let s = settings(&l, SceneSettings { bounces: Some(0), ..small(15, 15, 64) });
+        let r = cpu::render(&l.compiled, &s, &none).unwrap();
+        (l, pixel(&r, 7, 7))
+    };
+    let tilt = (30f64.to_radians().sin(), 30f64.to_radians().cos());
+    let cases: [(&str, String, String, f32); 3] = [
+        (
+            "point",
+            r#"{"type": "point", "color": [1, 0.5, 0.25], "intensity": 2}"#.into(),
+            r#""translation": [0, 0, 1]"#.into(),
+            2.0,
+        ),
+        (
+            // Rotated 60° about x, the light travels along (0, sin 60°, −cos 60°).
+            "directional",
+            r#"{"type": "directional", "color": [1, 0.5, 0.25], "intensity": 3}"#.into(),
+            format!(r#""rotation": [{}, 0, 0, {}]"#, tilt.0, tilt.1),
+            3.0,
+        ),
+        (
+            "spot",
+            r#"{"type": "spot", "color": [1, 0.5, 0.25], "intensity": 2, "spot": {"innerConeAngle": 0.2, "outerConeAngle": 0.3}}"#
+                .into(),
+            r#""translation": [0, 0, 1]"#.into(),
+            2.0,
+        ),
+    ];
+    for (name, light, node, intensity) in &cases {
+        let path = dir.join(format!("{name}.gltf"));
+        std::fs::write(&path, lit_quad_gltf(light, node)).unwrap();
+        let (l, got) = centre(&path);
+        assert_eq!(l.compiled.scene.punctual_lights.len(), 1, "{name}");
+        let (wi, irradiance) = if *name == "directional" {
+            let a = 60f32.to_radians();
+            (shared::glam::Vec3::new(0.0, -a.sin(), a.cos()), *intensity)
+        } else {
+            (shared::glam::Vec3::Z, *intensity)
+        };
+        let want = radiance(&l, wi) * irradiance * shared::glam::Vec3::new(1.0, 0.5, 0.25);
+        for k in 0..3 {
+            assert!((got[k] - want[k]).abs() <= 0.02 * want[k], "{name}: {got:?}, want {want:?}");
+        }
+    }
+    // A spot turned away (180° about x: it shines along +z) lights nothing.
+    let path = dir.join("away.gltf");
+    std::fs::write(&path, lit_quad_gltf(&cases[2].1, r#""translation": [0, 0, 1], "rotation": [1, 0, 0, 0]"#)).unwrap();
+    assert_eq!(centre(&path).1, [0.0; 3], "a spot turned away");
+    // Placed 5 up by a scene file, the point light moves with the quad.
+    std::fs::write(dir.join("point.toml"), "[[mesh]]\nfile = \"point.gltf\"\ntranslate = [0, 5, 0]\n").unwrap();
+    let l = load(&dir.join("point.toml"), None);
+    let light = l.compiled.scene.punctual_lights[0];
+    let world = light.position + l.compiled.origin;
+    assert!((world - DVec3::new(0.0, 5.0, 1.0)).length() < 1e-5, "{world:?}");
+}

@@ -16,12 +16,12 @@ use crate::files::Files;
 use crate::scene::obj::MAX_COORDINATE;
 use crate::scene::texture::{Kind, TextureSet};
 use crate::scene::transform::Placement;
-use crate::scene::{WorldAttributes, WorldScene};
+use crate::scene::{PunctualLight, WorldAttributes, WorldScene};
 use crate::settings::scene::SceneSettings;
 use crate::settings::{SamplerKind, MAX_BOUNCES, MAX_SIDE, MAX_SPP};
 use anyhow::{anyhow, bail, Context, Result};
 use serde::{Deserialize, Serialize};
-use shared::glam::{DVec3, Vec3};
+use shared::glam::{DMat3, DVec3, Vec3};
 use shared::layout::{NO_TEXTURE, TEXTURE_ALBEDO};
 use std::collections::BTreeMap;
 use std::ops::Range;
@@ -549,6 +549,7 @@ pub fn resolve(path: &Path, text: &str, file: &SceneFile, files: &dyn Files) -> 
     let mut material_of = Vec::new();
     let mut attributes: Vec<WorldAttributes> = Vec::new();
     let mut warnings = Vec::new();
+    let mut punctual_lights = Vec::new();
     for m in &file.meshes {
         let mesh_path = dir.join(m.file.get_ref());
         let mesh = crate::scene::gltf_file::load_any_mesh(&mesh_path, files)
@@ -606,6 +607,14 @@ pub fn resolve(path: &Path, text: &str, file: &SceneFile, files: &dyn Files) -> 
         }
         triangles.extend(placed);
         material_of.extend(mesh.scene.material_of.iter().map(|&l| global[l as usize]));
+        // A glTF file's lights move with its mesh.
+        let m4 = placement(m).matrix();
+        let linear = DMat3::from_mat4(m4);
+        punctual_lights.extend(mesh.scene.punctual_lights.iter().map(|l| PunctualLight {
+            position: m4.transform_point3(l.position),
+            direction: linear * l.direction,
+            ..*l
+        }));
         warnings.extend(mesh.warnings);
     }
     if !attributes.is_empty() {
@@ -626,7 +635,6 @@ pub fn resolve(path: &Path, text: &str, file: &SceneFile, files: &dyn Files) -> 
             );
         }
     }
-    let mut punctual_lights = Vec::new();
     for l in &file.lights {
         punctual_lights.push(l.get_ref().light().map_err(|err| anyhow!("{}: [[light]]: {err}", at(l.span())))?);
     }

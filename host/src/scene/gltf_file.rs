@@ -1,8 +1,8 @@
 //! glTF 2.0 (`.gltf` with its buffers and images, data URIs included, and `.glb`) through the
 //! `gltf` crate: the default scene's node hierarchy with every transform composed in f64, its
 //! meshes (triangles, strips and fans), vertex normals and TEXCOORD_0, the metallic-roughness
-//! materials as `principled` ones, perspective cameras and (parsed, not yet rendered)
-//! KHR_lights_punctual lights.
+//! materials as `principled` ones, perspective cameras and KHR_lights_punctual lights (point,
+//! spot and directional: delta lights, reached by next-event estimation only).
 //!
 //! Node transforms are read from the JSON text as f64 (the `gltf` crate reads them as f32), so a
 //! node at survey coordinates keeps its digits until the scene is moved to its local frame, as an
@@ -16,7 +16,7 @@
 use crate::files::Files;
 use crate::scene::obj::{Mesh, MAX_COORDINATE};
 use crate::scene::texture::{Kind, TextureSet};
-use crate::scene::{principled, Principled, WorldAttributes, WorldScene};
+use crate::scene::{principled, Principled, PunctualLight, WorldAttributes, WorldScene};
 use crate::settings::SceneSettings;
 use ::gltf::mesh::Mode;
 use anyhow::{anyhow, bail, Result};
@@ -61,29 +61,12 @@ impl GltfCamera {
     }
 }
 
-/// A KHR_lights_punctual light placed by a node (world coordinates), for the light support to
-/// come: position, the direction it points (−Z of its node), colour, intensity (candela for
-/// point and spot lights, lux for directional ones), range and the spot cone angles.
-#[derive(Clone, Debug, PartialEq)]
-pub struct GltfLight {
-    pub name: Option<String>,
-    /// "directional", "point" or "spot".
-    pub kind: &'static str,
-    pub position: DVec3,
-    pub direction: DVec3,
-    pub color: [f32; 3],
-    pub intensity: f32,
-    pub range: Option<f32>,
-    pub inner_cone: f32,
-    pub outer_cone: f32,
-}
-
-/// A glTF file read: its triangles and materials (as an OBJ's), cameras and lights.
+/// A glTF file read: its triangles and materials (as an OBJ's) with its KHR_lights_punctual
+/// lights in `mesh.scene.punctual_lights`, and its cameras.
 #[derive(Clone, Debug)]
 pub struct GltfScene {
     pub mesh: Mesh,
     pub cameras: Vec<GltfCamera>,
-    pub lights: Vec<GltfLight>,
 }
 
 impl GltfScene {
@@ -230,7 +213,7 @@ pub fn parse(path: &Path, bytes: &[u8], files: &dyn Files) -> Result<GltfScene> 
             continue;
         }
         let what = match ext.as_str() {
-            "KHR_lights_punctual" => continue, // counted below
+            "KHR_lights_punctual" => continue,
             "KHR_materials_volume" => "volume absorption is not rendered (the surfaces are)",
             _ => "not supported, ignored",
         };
@@ -366,23 +349,7 @@ pub fn parse(path: &Path, bytes: &[u8], files: &dyn Files) -> Result<GltfScene> 
             });
         }
         if let Some(l) = node.light() {
-            use ::gltf::khr_lights_punctual::Kind as L;
-            let (kind, inner_cone, outer_cone) = match l.kind() {
-                L::Directional => ("directional", 0.0, 0.0),
-                L::Point => ("point", 0.0, 0.0),
-                L::Spot { inner_cone_angle, outer_cone_angle } => ("spot", inner_cone_angle, outer_cone_angle),
-            };
-            lights.push(GltfLight {
-                name: l.name().map(String::from),
-                kind,
-                position: world.transform_point3(DVec3::ZERO),
-                direction: (linear * DVec3::NEG_Z).normalize_or_zero(),
-                color: l.color(),
-                intensity: l.intensity(),
-                range: l.range(),
-                inner_cone,
-                outer_cone,
-            });
+            lights.push(light_of(&p.to_string(), node.index(), &l, world, linear, &mut warnings)?);
         }
         let Some(mesh) = node.mesh() else { continue };
         let mirrors = linear.determinant() < 0.0;
@@ -504,9 +471,6 @@ pub fn parse(path: &Path, bytes: &[u8], files: &dyn Files) -> Result<GltfScene> 
     if cut > 0 {
         warnings.push(format!("{p}: {cut} triangles cut out: their material's alpha is below its alphaCutoff"));
     }
-    if !lights.is_empty() {
-        warnings.push(format!("{p}: KHR_lights_punctual: {} lights not rendered yet", lights.len()));
-    }
     warnings.extend(notes);
     if triangles.is_empty() {
         bail!("{p}: no triangles in the scene");
@@ -519,10 +483,43 @@ pub fn parse(path: &Path, bytes: &[u8], files: &dyn Files) -> Result<GltfScene> 
         attributes,
         textures,
         environment_map: None,
-        // KHR_lights_punctual lights are parsed (`lights`) but not yet turned into these.
-        punctual_lights: Vec::new(),
+        punctual_lights: lights,
     };
-    Ok(GltfScene { mesh: Mesh { scene, warnings }, cameras, lights })
+    Ok(GltfScene { mesh: Mesh { scene, warnings }, cameras })
+}
+
+/// A KHR_lights_punctual light as its node places it (world coordinates; it shines along the
+/// node's −Z), in the extension's units (candela for point and spot lights, lux for
+/// directional ones), which are `PunctualLight`'s. `range` only limits a light for real-time
+/// renderers; a physically based one ignores it, with a warning.
+fn light_of(
+    p: &str,
+    node: usize,
+    l: &::gltf::khr_lights_punctual::Light,
+    world: DMat4,
+    linear: DMat3,
+    warnings: &mut Vec<String>,
+) -> Result<PunctualLight> {
+    use ::gltf::khr_lights_punctual::Kind as K;
+    let label = match l.name() {
+        Some(n) => format!("{p}: node {node}: light {} ({n:?})", l.index()),
+        None => format!("{p}: node {node}: light {}", l.index()),
+    };
+    let position = world.transform_point3(DVec3::ZERO);
+    let direction = linear * DVec3::NEG_Z;
+    let color = Vec3::from(l.color());
+    let light = match l.kind() {
+        K::Directional => PunctualLight::directional(direction, color, l.intensity()),
+        K::Point => PunctualLight::point(position, color, l.intensity()),
+        K::Spot { inner_cone_angle, outer_cone_angle } => {
+            PunctualLight::spot(position, direction, color, l.intensity(), inner_cone_angle, outer_cone_angle)
+        }
+    };
+    light.check().map_err(|e| anyhow!("{label}: {e}"))?;
+    if let Some(r) = l.range() {
+        warnings.push(format!("{label}: range {r} ignored (light falls off with the inverse square only)"));
+    }
+    Ok(light)
 }
 
 /// Whether `path` names a glTF file (`.gltf` or `.glb`).

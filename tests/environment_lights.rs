@@ -386,3 +386,33 @@ fn the_command_line_takes_a_map_or_a_colour() {
         );
     }
 }
+
+/// A Radiance `.hdr` map reads as the radiance it holds (within RGBE's 8-bit mantissas, which
+/// share the brightest channel's exponent)
+/// and renders; a broken one is an error naming the file.
+#[test]
+fn radiance_hdr_maps_read_and_render() {
+    let dir = scene_dir("hdr");
+    let (w, h) = (8u32, 4u32);
+    let texel = |x: u32, y: u32| [0.1 + 0.3 * x as f32, 2.0 + y as f32, 0.05];
+    let pixels: Vec<image::Rgb<f32>> = (0..w * h).map(|i| image::Rgb(texel(i % w, i / w))).collect();
+    let mut bytes = Vec::new();
+    image::codecs::hdr::HdrEncoder::new(&mut bytes).encode(&pixels, w as usize, h as usize).unwrap();
+    std::fs::write(dir.join("sky.hdr"), &bytes).unwrap();
+    let map = kdtrace::scene::EnvironmentMap::read(&dir.join("sky.hdr"), 1.0, [0.0; 3]).unwrap();
+    assert_eq!((map.width, map.height), (w, h));
+    for (i, t) in map.texels.iter().enumerate() {
+        let want = texel(i as u32 % w, i as u32 / w);
+        // The mantissas share the brightest channel's exponent.
+        let step = want.iter().fold(0f32, |a, &b| a.max(b)) / 128.0;
+        for k in 0..3 {
+            assert!((t[k] - want[k]).abs() <= step, "texel {i}: {t:?}, want {want:?}");
+        }
+    }
+    write(&dir.join("scene.toml"), "environment = { file = \"sky.hdr\" }\n\n[[mesh]]\nfile = \"bunny.obj\"\n");
+    let l = kdtrace::load(&dir.join("scene.toml"), BuildSettings::default()).unwrap();
+    assert!(l.compiled.scene.environment_map.is_some());
+    std::fs::write(dir.join("broken.hdr"), &bytes[..bytes.len() / 2]).unwrap();
+    let e = kdtrace::scene::EnvironmentMap::read(&dir.join("broken.hdr"), 1.0, [0.0; 3]).unwrap_err();
+    assert!(format!("{e:#}").contains("broken.hdr"), "{e:#}");
+}

@@ -43,7 +43,7 @@ pub struct ImageArgs {
     #[arg(long, value_name = "NAME|INDEX")]
     pub camera: Option<String>,
     /// Radiance of rays that leave the scene: linear r,g,b, or an equirectangular environment
-    /// map FILE (.exr or .pfm; strength 1, not rotated), which replaces the scene's [scene file,
+    /// map FILE (.exr, .hdr or .pfm; strength 1, not rotated), which replaces the scene's [scene file,
     /// else black].
     #[arg(long, value_name = "R,G,B|FILE", allow_hyphen_values = true)]
     pub environment: Option<String>,

@@ -10,9 +10,9 @@ use std::process::ExitCode;
 
 #[derive(Args)]
 pub struct CompareArgs {
-    /// Reference image (.exr or .pfm).
+    /// Reference image (.exr, .hdr or .pfm).
     reference: PathBuf,
-    /// Test image (.exr or .pfm), same size.
+    /// Test image (.exr, .hdr or .pfm), same size.
     test: PathBuf,
     /// The test image's per-sample variance (`render --variance`): adds a per-pixel test of the
     /// test image against the reference (Šidák-corrected, α = 0.01). Needs --spp.

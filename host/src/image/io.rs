@@ -117,8 +117,27 @@ pub fn read_linear_image(path: &Path) -> Result<(u32, u32, Vec<[f32; 3]>)> {
     match path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref() {
         Some("exr") => read_exr(path),
         Some("pfm") => read_pfm(path),
-        _ => bail!("{}: unknown linear image format (use .exr or .pfm)", path.display()),
+        Some("hdr") => read_hdr(path),
+        _ => bail!("{}: unknown linear image format (use .exr, .hdr or .pfm)", path.display()),
     }
+}
+
+/// Reads a Radiance RGBE picture (`.hdr`, Greg Ward's format; flat or run-length encoded rows,
+/// through the `image` crate): linear RGB with an 8-bit mantissa shared by the three channels.
+pub fn read_hdr(path: &Path) -> Result<(u32, u32, Vec<[f32; 3]>)> {
+    let bytes =
+        files::read_input(path, MAX_IMAGE_BYTES).map_err(|e| anyhow!("{}: cannot read: {e}", path.display()))?;
+    let decoder = image::codecs::hdr::HdrDecoder::new(std::io::Cursor::new(&bytes[..]))
+        .map_err(|e| anyhow!("{}: not a Radiance HDR file: {e}", path.display()))?;
+    let meta = decoder.metadata();
+    let (width, height) = (meta.width, meta.height);
+    if width == 0 || height == 0 || width > crate::settings::MAX_SIDE || height > crate::settings::MAX_SIDE {
+        bail!("{}: {width}×{height} pixels: each side must be 1 to {}", path.display(), crate::settings::MAX_SIDE);
+    }
+    let image = image::DynamicImage::from_decoder(decoder)
+        .map_err(|e| anyhow!("{}: cannot decode the Radiance HDR pixels: {e}", path.display()))?;
+    let texels = image.to_rgb32f().pixels().map(|p| p.0).collect();
+    Ok((width, height, texels))
 }
 
 /// Reads a Portable Float Map (Paul Debevec's format as used by HDRShop and pbrt): header `PF`

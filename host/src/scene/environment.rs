@@ -1,5 +1,5 @@
-//! Environment maps and punctual lights on the host: reading the map (OpenEXR or PFM, linear
-//! RGB), its sampling tables (built in f64, rounded once) and the words the integrator reads
+//! Environment maps and punctual lights on the host: reading the map (OpenEXR, Radiance HDR or
+//! PFM, linear RGB), its sampling tables (built in f64, rounded once) and the words the integrator reads
 //! (`shared::environment`, `shared::punctual`), appended to the texture buffer.
 use anyhow::{anyhow, bail, Result};
 use shared::glam::{DMat3, DVec3, Vec3};
@@ -22,7 +22,7 @@ pub struct EnvironmentMap {
 }
 
 impl EnvironmentMap {
-    /// Reads a map (`.exr` or `.pfm`): every texel finite and non-negative.
+    /// Reads a map (`.exr`, `.hdr` or `.pfm`): every texel finite and non-negative.
     pub fn read(path: &Path, strength: f32, rotate: [f64; 3]) -> Result<Self> {
         let (width, height, texels) = crate::image::io::read_linear_image(path)?;
         Self::new(width, height, texels, strength, rotate, path.display().to_string())

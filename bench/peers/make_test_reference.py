@@ -9,7 +9,11 @@ tests/data/cornell-materials/cornell-plastic-mitsuba-32.exr: the tall block `pla
 diffuse_reflectance (0.7, 0.25, 0.1), int_ior 1.5, ext_ior 1, nonlinear false, two-sided; with
 `roughplastic`, cornell-roughplastic-mitsuba-32.exr: the same under `roughplastic`, GGX α 0.2); with `textured`,
 tests/data/cornell-textured/cornell-textured-mitsuba-32.exr: the box with a 4x4-texel sRGB poster
-on its back wall, Mitsuba's `bitmap` with bilinear filtering and repeat wrapping, raw = false).
+on its back wall, Mitsuba's `bitmap` with bilinear filtering and repeat wrapping, raw = false; with
+`environment`, tests/data/environment/sky-scene-mitsuba-32.exr: a floor and a block (sky-scene.obj)
+under the equirectangular map sky.exr, which this mode writes first (`sky`), Mitsuba's `envmap`
+rotated 30 degrees about y as the scene file's `rotate = [0, 30, 0]`, seen from the scene file's
+camera).
 
 Mitsuba 3.9 `llvm_ad_rgb` renders our Cornell box (scenes/cornell-box.obj) as render_mitsuba.py
 does: 32x32 pixels, 6 bounces (max_depth 8), Cornell's camera (eye 0.278,0.273,0.8, target
@@ -77,15 +81,36 @@ def poster(d, tmp, folder):
     d[key]["bsdf"] = {"type": "twosided", "material": {"type": "diffuse", "reflectance": texture}}
 
 
+def sky(path):
+    """Writes the 64x32 equirectangular test sky (row 0 at the top, +Y; Mitsuba's envmap
+    mapping): a blue gradient above the horizon, redder toward u = 1/4 so that a mirrored or
+    turned map shows, a brown ground below, and a 2x2-texel sun of radiance (150, 135, 110)."""
+    w, h = 64, 32
+    img = np.zeros((h, w, 3), dtype=np.float32)
+    for y in range(h):
+        for x in range(w):
+            u, v = (x + 0.5) / w, y / (h - 1)
+            if v < 0.5:
+                g = 0.4 + 1.2 * (0.5 - v)
+                img[y, x] = [0.3 * g * (1.0 + 0.6 * np.sin(2 * np.pi * u)), 0.5 * g, 1.0 * g]
+            else:
+                img[y, x] = [0.25, 0.2, 0.15]
+    img[8:10, 40:42] = [150.0, 135.0, 110.0]
+    mi.util.write_bitmap(path, mi.Bitmap(img, pixel_format=mi.Bitmap.PixelFormat.RGB), write_async=False)
+
+
 def main():
     mi.set_variant("llvm_ad_rgb")
     mode = sys.argv[1] if len(sys.argv) > 1 else "box"
-    if mode not in ("box", "metal", "glass", "smooth-glass", "plastic", "roughplastic", "textured"):
-        sys.exit(f"unknown mode {mode!r}: box, metal, glass, smooth-glass, plastic, roughplastic or textured")
+    modes = ("box", "metal", "glass", "smooth-glass", "plastic", "roughplastic", "textured", "environment")
+    if mode not in modes:
+        sys.exit(f"unknown mode {mode!r}: {', '.join(modes)}")
+    env_folder = os.path.join(ROOT, "tests", "data", "environment")
     box = os.path.join(ROOT, "scenes", "cornell-box.obj")
     block = os.path.join(ROOT, "tests", "data", "cornell-metal", "cornell-metal.obj")
     textured_folder = os.path.join(ROOT, "tests", "data", "cornell-textured")
-    obj = {"box": box, "textured": os.path.join(textured_folder, "cornell-textured.obj")}.get(mode, block)
+    obj = {"box": box, "textured": os.path.join(textured_folder, "cornell-textured.obj"),
+           "environment": os.path.join(env_folder, "sky-scene.obj")}.get(mode, block)
     bsdfs = {}
     if mode == "metal":
         gold = {"type": "roughconductor", "distribution": "ggx", "alpha": 0.2, "sample_visible": True,
@@ -109,12 +134,18 @@ def main():
         scene=obj, width=SIZE, height=SIZE, bounces=6, sampler="independent",
         eye=(0.278, 0.273, 0.8), target=(0.278, 0.273, 0.0), up=(0.0, 1.0, 0.0), fov=39.3076,
     )
+    if mode == "environment":
+        args.eye, args.target, args.fov = (2.2, 1.0, 2.6), (0.0, 0.5, 0.0), 45.0
+        sky(os.path.join(env_folder, "sky.exr"))
     t0 = time.perf_counter()
     chunks = []
     with tempfile.TemporaryDirectory() as tmp:
         d = render_mitsuba.scene_dict(args, tmp, bsdfs)
         if mode == "textured":
             poster(d, tmp, textured_folder)
+        if mode == "environment":
+            d["sky"] = {"type": "envmap", "filename": os.path.join(env_folder, "sky.exr"),
+                        "to_world": mi.ScalarTransform4f().rotate([0, 1, 0], 30)}
         scene = mi.load_dict(d)
         for c in range(CHUNKS):
             img = mi.render(scene, spp=SPP_PER_CHUNK, seed=1000 + c)
@@ -130,6 +161,7 @@ def main():
         "plastic": (os.path.join(ROOT, "tests", "data", "cornell-materials"), "cornell-plastic-mitsuba-32"),
         "roughplastic": (os.path.join(ROOT, "tests", "data", "cornell-materials"), "cornell-roughplastic-mitsuba-32"),
         "textured": (textured_folder, "cornell-textured-mitsuba-32"),
+        "environment": (env_folder, "sky-scene-mitsuba-32"),
     }[mode]
     os.makedirs(out, exist_ok=True)
     for name, a in [(f"{stem}.exr", mean), (f"{stem}-stderr.exr", stderr)]:

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Regenerates tests/data/cornell-box-mitsuba-32{,-stderr}.exr, or with `metal`, `glass`,
-# `smooth-glass`, `plastic`, `roughplastic` or `textured` the references of the tall block's materials and of the
+# `smooth-glass`, `plastic`, `roughplastic`, `textured` or `environment` the references of the tall block's materials and of the
 # textured box (see make_test_reference.py for where each goes), with
 # the venv and LLVM that bench/peers.sh sets up. About 2-4 minutes on 2 cores.
 set -euo pipefail

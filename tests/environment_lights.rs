@@ -315,9 +315,24 @@ intensity = 2
     assert_eq!(map.texels[8 * 3 + 2], [0.2, 0.6, 0.3], "the top row is the first");
     assert_eq!(c.scene.punctual_lights.len(), 3);
     assert_eq!(c.light_count, 4);
-    // A .kdc cannot carry them yet: compiling says so instead of dropping them.
-    let e = kdtrace::render::kdc::encode(c, &BuildSettings::default(), &loaded.settings).unwrap_err();
-    assert!(format!("{e:#}").contains("environment maps or punctual lights"), "{e:#}");
+    // A .kdc carries them: compiled, the scene renders the same bits.
+    let kdc = dir.join("scene.kdc");
+    kdtrace::render::kdc::write(&kdc, c, &BuildSettings::default(), &loaded.settings).unwrap();
+    let back = kdtrace::load(&kdc, BuildSettings::default()).unwrap();
+    assert_eq!(back.compiled.scene.environment_map.as_ref(), Some(map));
+    assert_eq!(back.compiled.scene.punctual_lights, c.scene.punctual_lights);
+    let s = settings(16, 4, 2, top_camera());
+    let (a, b) = (cpu::render(c, &s, &no_progress).unwrap(), cpu::render(&back.compiled, &s, &no_progress).unwrap());
+    assert!(a.sum.iter().any(|p| p.x > 0.0));
+    assert!(a.sum == b.sum, "the compiled scene renders differently");
+    // A crafted header's light is checked as a scene file's is.
+    let mut bytes = std::fs::read(&kdc).unwrap();
+    let at = bytes.windows(15).position(|w| w == b"\"intensity\":5.0").expect("the spot's intensity in the header");
+    bytes[at..at + 15].copy_from_slice(b"\"intensity\":-50");
+    kdtrace::render::kdc::seal(&mut bytes);
+    std::fs::write(&kdc, &bytes).unwrap();
+    let e = kdtrace::load(&kdc, BuildSettings::default()).err().expect("a negative intensity loaded");
+    assert!(format!("{e:#}").contains("scene.kdc") && format!("{e:#}").contains("intensity"), "{e:#}");
 }
 
 #[test]

@@ -34,7 +34,7 @@ pub fn join(p: &Parts) -> Vec<u8> {
 }
 
 /// Byte offset in the body of section `which` (0 triangles, 1 info, 2 materials, 3 lights,
-/// 4 nodes, 5 indices, 6 vertex attributes, 7 textures).
+/// 4 nodes, 5 indices, 6 vertex attributes, 7 textures, 8 environment texels).
 pub fn section_offset(p: &Parts, which: usize) -> usize {
     let c = &p.header["counts"];
     let n = |k: &str| c[k].as_u64().unwrap() as usize;
@@ -47,6 +47,7 @@ pub fn section_offset(p: &Parts, which: usize) -> usize {
         n("indices") * 4,
         n("attributes") * std::mem::size_of::<shared::layout::TriangleAttributes>(),
         n("texture_words") * 4,
+        n("environment_texels") * 12,
     ];
     sizes[..which].iter().sum()
 }

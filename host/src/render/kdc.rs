@@ -11,8 +11,8 @@
 //! | 12 | 4 | JSON header length in bytes, a multiple of 16 (space-padded) |
 //! | 16 | 8 | payload length: everything after these 32 bytes |
 //! | 24 | 8 | XXH3-64 of every other byte of the file (bytes 0..24, then 32..) |
-//! | 32 | … | JSON header: writer, build settings (serde), scene settings, material names, bounds, counts |
-//! | … | … | sections of packed `shared::layout` structs: triangles, triangle info, materials, lights, nodes, indices, vertex attributes (none, or one per triangle), the texture buffer (`shared::texture`) |
+//! | 32 | … | JSON header: writer, build settings (serde), scene settings, material names, bounds, the environment map's size, strength and rotation, the punctual lights, counts |
+//! | … | … | sections of packed `shared::layout` structs: triangles, triangle info, materials, lights, nodes, indices, vertex attributes (none, or one per triangle), the texture buffer (`shared::texture`), the environment map's texels (RGB f32, none without a map) |
 //!
 //! Reading trusts nothing: the version is checked before anything else, every section size is
 //! derived from the header's counts with checked arithmetic and must add up to the file's actual
@@ -25,7 +25,7 @@ use crate::files;
 use crate::kdbuild::{check_structure, BuildSettings, KdTree};
 use crate::render::Compiled;
 use crate::scene::obj::MAX_COORDINATE;
-use crate::scene::Scene;
+use crate::scene::{EnvironmentMap, PunctualLight, Scene};
 use crate::settings::scene::SceneSettings;
 use anyhow::{anyhow, bail, Context, Result};
 use bytemuck::Pod;
@@ -33,14 +33,15 @@ use serde::{Deserialize, Serialize};
 use shared::glam::{DVec3, Vec3, Vec4};
 use shared::layout::{
     KdNode, Light, Material, Triangle, TriangleAttributes, TriangleInfo, KD_MAX_DEPTH, MATERIAL_CONDUCTOR,
-    MATERIAL_DIELECTRIC, MATERIAL_DIFFUSE, MATERIAL_PLASTIC, MATERIAL_PRINCIPLED, NO_LIGHT,
+    MATERIAL_DIELECTRIC, MATERIAL_DIFFUSE, MATERIAL_PLASTIC, MATERIAL_PRINCIPLED, NO_LIGHT, PUNCTUAL_DIRECTIONAL,
+    PUNCTUAL_POINT, PUNCTUAL_SPOT,
 };
 use std::path::Path;
 use xxhash_rust::xxh3::Xxh3;
 
 pub const MAGIC: [u8; 8] = *b"\x89KDC\r\n\x1a\n";
 /// Bump on any change of the layout or of the meaning of a field.
-pub const FORMAT_VERSION: u32 = 3;
+pub const FORMAT_VERSION: u32 = 4;
 /// Bytes before the JSON header.
 pub const FIXED_HEADER: usize = 32;
 
@@ -57,6 +58,64 @@ struct Counts {
     /// Textures in the table, and words of the texture buffer (table and texels).
     textures: u64,
     texture_words: u64,
+    /// The environment map's texels (width × height), 0 without one.
+    environment_texels: u64,
+}
+
+/// An environment map in the header; its texels are a section.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct EnvironmentHeader {
+    width: u32,
+    height: u32,
+    strength: f32,
+    rotate: [f64; 3],
+    source: String,
+}
+
+/// A punctual light in the header (`scene::PunctualLight`; position in the scene's local frame).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LightHeader {
+    kind: u32,
+    position: [f64; 3],
+    direction: [f64; 3],
+    color: [f32; 3],
+    intensity: f32,
+    inner_cone_angle: f32,
+    outer_cone_angle: f32,
+}
+
+impl LightHeader {
+    fn of(l: &PunctualLight) -> Self {
+        Self {
+            kind: l.kind,
+            position: l.position.to_array(),
+            direction: l.direction.to_array(),
+            color: l.color.to_array(),
+            intensity: l.intensity,
+            inner_cone_angle: l.inner_cone_angle,
+            outer_cone_angle: l.outer_cone_angle,
+        }
+    }
+
+    /// The light, checked as a scene file's would be.
+    fn light(&self, i: usize) -> Result<PunctualLight> {
+        if ![PUNCTUAL_POINT, PUNCTUAL_SPOT, PUNCTUAL_DIRECTIONAL].contains(&self.kind) {
+            bail!("punctual light {i}: unknown kind {}", self.kind);
+        }
+        let l = PunctualLight {
+            kind: self.kind,
+            position: DVec3::from(self.position),
+            direction: DVec3::from(self.direction),
+            color: Vec3::from(self.color),
+            intensity: self.intensity,
+            inner_cone_angle: self.inner_cone_angle,
+            outer_cone_angle: self.outer_cone_angle,
+        };
+        l.check().with_context(|| format!("punctual light {i}"))?;
+        Ok(l)
+    }
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -76,6 +135,8 @@ struct Header {
     /// World position of the scene's origin (`local_frame`), f64; absent in files from before it.
     #[serde(default)]
     origin: [f64; 3],
+    environment: Option<EnvironmentHeader>,
+    punctual_lights: Vec<LightHeader>,
     counts: Counts,
 }
 
@@ -94,13 +155,8 @@ fn writer() -> String {
 
 /// The bytes of a `.kdc` file.
 pub fn encode(c: &Compiled, build_settings: &BuildSettings, settings: &SceneSettings) -> Result<Vec<u8>> {
-    if c.scene.environment_map.is_some() || !c.scene.punctual_lights.is_empty() {
-        bail!(
-            "compiled scenes (.kdc) do not store environment maps or punctual lights yet: render the scene file \
-             instead"
-        );
-    }
     let (s, t) = (&c.scene, &c.tree);
+    let map = s.environment_map.as_ref();
     let header = Header {
         writer: writer(),
         build_settings: *build_settings,
@@ -112,6 +168,14 @@ pub fn encode(c: &Compiled, build_settings: &BuildSettings, settings: &SceneSett
         tree_bounds: [t.bounds_min.to_array(), t.bounds_max.to_array()],
         tree_depth: t.depth,
         origin: c.origin.to_array(),
+        environment: map.map(|m| EnvironmentHeader {
+            width: m.width,
+            height: m.height,
+            strength: m.strength,
+            rotate: m.rotate,
+            source: m.source.clone(),
+        }),
+        punctual_lights: s.punctual_lights.iter().map(LightHeader::of).collect(),
         counts: Counts {
             triangles: s.triangles.len() as u64,
             materials: s.materials.len() as u64,
@@ -121,12 +185,13 @@ pub fn encode(c: &Compiled, build_settings: &BuildSettings, settings: &SceneSett
             attributes: s.attributes.len() as u64,
             textures: s.texture_sources.len() as u64,
             texture_words: s.textures.len() as u64,
+            environment_texels: map.map_or(0, |m| m.texels.len() as u64),
         },
     };
     let mut json = serde_json::to_vec(&header).context("encoding the .kdc header")?;
     // Pad so that every section starts 16-byte aligned (Triangle and Material hold Vec4s).
     json.resize(json.len().next_multiple_of(16), b' ');
-    let sections: [&[u8]; 8] = [
+    let sections: [&[u8]; 9] = [
         bytemuck::cast_slice(&s.triangles),
         bytemuck::cast_slice(&s.info),
         bytemuck::cast_slice(&s.materials),
@@ -135,6 +200,7 @@ pub fn encode(c: &Compiled, build_settings: &BuildSettings, settings: &SceneSett
         bytemuck::cast_slice(&t.indices),
         bytemuck::cast_slice(&s.attributes),
         bytemuck::cast_slice(&s.textures),
+        map.map_or(&[][..], |m| bytemuck::cast_slice(&m.texels)),
     ];
     let payload = json.len() + sections.iter().map(|b| b.len()).sum::<usize>();
     let mut out = Vec::with_capacity(FIXED_HEADER + payload);
@@ -303,8 +369,16 @@ pub fn decode_from(path: &Path, input: &dyn ReadAt, len: u64) -> Result<KdcScene
     if computed != stored {
         return Err(mismatch(computed));
     }
-    valid.with_context(|| format!("{name}: invalid compiled scene (written by {})", header.writer))?;
-    let compiled = sections.into_compiled(&header);
+    let invalid = || format!("{name}: invalid compiled scene (written by {})", header.writer);
+    valid.with_context(invalid)?;
+    let lights = header.punctual_lights.iter().enumerate().map(|(i, l)| l.light(i)).collect::<Result<Vec<_>>>();
+    let lights = lights.with_context(invalid)?;
+    let mut sections = sections;
+    let texels = std::mem::take(&mut sections.environment);
+    let mut compiled = sections.into_compiled(&header);
+    compiled.scene.environment_map = compiled_map(&header, texels).with_context(invalid)?;
+    compiled.scene.punctual_lights = lights;
+    compiled.prepare_emitters();
     Ok(KdcScene { compiled, build_settings: header.build_settings, settings: header.settings, writer: header.writer })
 }
 
@@ -323,7 +397,7 @@ fn hash_range(input: &dyn ReadAt, at: u64, len: u64, hasher: &mut Xxh3) -> std::
 }
 
 /// (what, count, element size) of each section in file order.
-fn section_sizes(c: &Counts) -> [(&'static str, u64, usize); 8] {
+fn section_sizes(c: &Counts) -> [(&'static str, u64, usize); 9] {
     [
         ("triangles", c.triangles, size_of::<Triangle>()),
         ("triangle info", c.triangles, size_of::<TriangleInfo>()),
@@ -333,7 +407,23 @@ fn section_sizes(c: &Counts) -> [(&'static str, u64, usize); 8] {
         ("indices", c.indices, size_of::<u32>()),
         ("vertex attributes", c.attributes, size_of::<TriangleAttributes>()),
         ("textures", c.texture_words, size_of::<u32>()),
+        ("environment texels", c.environment_texels, size_of::<[f32; 3]>()),
     ]
+}
+
+/// The environment map the header describes with its texels' section (checked as a map file's
+/// are).
+fn compiled_map(h: &Header, texels: Vec<[f32; 3]>) -> Result<Option<EnvironmentMap>> {
+    match &h.environment {
+        None if texels.is_empty() => Ok(None),
+        None => bail!("{} environment texels without an environment map", texels.len()),
+        Some(e) => {
+            if e.width as u64 * e.height as u64 != texels.len() as u64 {
+                bail!("environment map {}×{} with {} texels", e.width, e.height, texels.len());
+            }
+            EnvironmentMap::new(e.width, e.height, texels, e.strength, e.rotate, e.source.clone()).map(Some)
+        }
+    }
 }
 
 /// The bytes the sections take, or `None` when that overflows.
@@ -365,6 +455,7 @@ struct Sections {
     indices: Vec<u32>,
     attributes: Vec<TriangleAttributes>,
     textures: Vec<u32>,
+    environment: Vec<[f32; 3]>,
 }
 
 impl Sections {
@@ -392,11 +483,26 @@ impl Sections {
                     next(c.attributes, size_of::<TriangleAttributes>()),
                 )?;
                 let textures = section::<u32>(c.texture_words, input, next(c.texture_words, size_of::<u32>()))?;
-                Ok((info, materials, lights, nodes, indices, attributes, textures))
+                let environment = section::<[f32; 3]>(
+                    c.environment_texels,
+                    input,
+                    next(c.environment_texels, size_of::<[f32; 3]>()),
+                )?;
+                Ok((info, materials, lights, nodes, indices, attributes, textures, environment))
             })(),
         );
-        let (info, materials, lights, nodes, indices, attributes, textures) = rest?;
-        Ok(Sections { triangles: triangles?, info, materials, lights, nodes, indices, attributes, textures })
+        let (info, materials, lights, nodes, indices, attributes, textures, environment) = rest?;
+        Ok(Sections {
+            triangles: triangles?,
+            info,
+            materials,
+            lights,
+            nodes,
+            indices,
+            attributes,
+            textures,
+            environment,
+        })
     }
 
     /// Feeds the sections to the checksum in file order.
@@ -409,6 +515,7 @@ impl Sections {
         h.update(bytemuck::cast_slice(&self.indices));
         h.update(bytemuck::cast_slice(&self.attributes));
         h.update(bytemuck::cast_slice(&self.textures));
+        h.update(bytemuck::cast_slice(&self.environment));
     }
 
     fn into_compiled(self, h: &Header) -> Compiled {

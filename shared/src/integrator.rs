@@ -14,6 +14,7 @@
 //! `NoRecord`, whose hooks compile to nothing.
 use crate::camera::primary_direction;
 use crate::environment;
+use crate::exp::exp_neg;
 use crate::features::{
     Variant, FEATURE_EMITTERS, FEATURE_ENVIRONMENT, FEATURE_ENVIRONMENT_MAP, FEATURE_INDIRECT, FEATURE_MANY_EMITTERS,
     FEATURE_PUNCTUAL,
@@ -24,7 +25,7 @@ use crate::layout::{
     RenderParams, AOV_ALBEDO, AOV_COST, AOV_NORMAL, LIGHT_ENVIRONMENT_BIT, LIGHT_NOT_TRIANGLE, LIGHT_OFFSET_MASK,
     NO_ENVIRONMENT_MAP, NO_HIT, NO_LIGHT,
 };
-use crate::material::{albedo, emitted, eval, is_delta, picks_lobe, sample as sample_bsdf, transmits};
+use crate::material::{absorption, albedo, emitted, eval, is_delta, picks_lobe, sample as sample_bsdf, transmits};
 use crate::numerics::{offset_ray_origin, sanitize};
 use crate::punctual;
 use crate::raycast::query_recorded;
@@ -39,7 +40,7 @@ use crate::surface::{consistent, emission_at, hit_weights, material_at, shading_
 #[cfg(not(target_arch = "spirv"))]
 use crate::surface::{looks_up_textures, resolve};
 use crate::triangle::{geometric_normal, hit_point, interpolate, stored_normal, TriangleHit};
-use crate::vecmath::{dot, length_squared, max_component, normalize, xyz};
+use crate::vecmath::{dot, length, length_squared, max_component, normalize, xyz};
 #[allow(unused_imports)]
 use spirv_std::num_traits::Float;
 
@@ -229,6 +230,14 @@ fn shade_vertex<R: Recorder>(
             shading_normal: ns,
             front,
         });
+    }
+
+    // A ray that reaches a surface from behind travelled inside it: an absorbing medium
+    // (KHR_materials_volume) takes its share, e^(−σ·distance) per channel.
+    let sigma = absorption(v, mat);
+    if ((sigma.x > 0.0) | (sigma.y > 0.0) | (sigma.z > 0.0)) && dot(ng, dir) > 0.0 {
+        let d = hit.t * length(dir);
+        path.beta *= Vec3::new(exp_neg(-sigma.x * d), exp_neg(-sigma.y * d), exp_neg(-sigma.z * d));
     }
 
     // Only emitters emit, and every emitter is in the light table.

@@ -17,6 +17,7 @@ pub use spirv_std::glam;
 
 pub mod camera;
 pub mod environment;
+pub mod exp;
 pub mod features;
 pub mod integrator;
 pub mod kdtree;

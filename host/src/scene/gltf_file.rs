@@ -35,8 +35,14 @@ use buffers::*;
 use material::*;
 
 /// Extensions whose effect is rendered.
-pub const SUPPORTED_EXTENSIONS: [&str; 4] =
-    ["KHR_texture_transform", "KHR_materials_emissive_strength", "KHR_materials_transmission", "KHR_materials_ior"];
+pub const SUPPORTED_EXTENSIONS: [&str; 6] = [
+    "KHR_texture_transform",
+    "KHR_materials_emissive_strength",
+    "KHR_materials_transmission",
+    "KHR_materials_ior",
+    "KHR_materials_volume",
+    "KHR_lights_punctual",
+];
 
 /// A camera placed by a node, in world coordinates.
 #[derive(Clone, Debug, PartialEq)]
@@ -212,12 +218,7 @@ pub fn parse(path: &Path, bytes: &[u8], files: &dyn Files) -> Result<GltfScene> 
         if SUPPORTED_EXTENSIONS.contains(&ext.as_str()) {
             continue;
         }
-        let what = match ext.as_str() {
-            "KHR_lights_punctual" => continue,
-            "KHR_materials_volume" => "volume absorption is not rendered (the surfaces are)",
-            _ => "not supported, ignored",
-        };
-        warnings.push(format!("{p}: glTF extension {ext}: {what}"));
+        warnings.push(format!("{p}: glTF extension {ext}: not supported, ignored"));
     }
     let document = ::gltf::Gltf::from_slice_without_validation(&json_bytes)
         .map_err(|e| anyhow!("{p}: not a glTF 2.0 file: {e}"))?

@@ -148,6 +148,17 @@ pub fn transmits(v: Variant, m: &Material) -> bool {
         | (is(v, m, MATERIAL_PRINCIPLED, FEATURE_PRINCIPLED) & (m.params.w > 0.0))
 }
 
+/// The absorption coefficient per unit length inside `m` (Beer–Lambert; a principled
+/// material's KHR_materials_volume, in `k.xyz`), zero where nothing absorbs.
+#[inline]
+pub fn absorption(v: Variant, m: &Material) -> Vec3 {
+    if is(v, m, MATERIAL_PRINCIPLED, FEATURE_PRINCIPLED) {
+        xyz(m.k)
+    } else {
+        Vec3::ZERO
+    }
+}
+
 /// The material's colour for an albedo image: a diffuse, plastic or principled material's base
 /// colour, a conductor's reflectance at normal incidence, a dielectric's white (it lets
 /// everything through or reflects it).

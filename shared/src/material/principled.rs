@@ -13,7 +13,9 @@
 //! grazing view reflect almost twice the light it receives). Roughness is perceptual: α =
 //! roughness², at least `PRINCIPLED_MIN_ALPHA`, so the model has no delta lobe.
 //!
-//! Layout: `albedo` base colour; `params` = (α, ior, metallic, transmission).
+//! Layout: `albedo` base colour; `params` = (α, ior, metallic, transmission); `k.xyz` the
+//! absorption coefficient of the medium inside (KHR_materials_volume, applied by the
+//! integrator to the distance a ray travels inside); `eta.w` a normal map's scale.
 use super::dielectric::{fresnel_dielectric, refract, relative_eta, rough_transmission};
 use super::microfacet::{ggx_d, ggx_g1, ggx_sample_visible, ggx_visible_pdf};
 use super::{BsdfSample, Frame};

@@ -188,10 +188,24 @@ pub(super) fn material(
     if transmission.as_ref().is_some_and(|t| t.transmission_texture().is_some()) {
         notes.insert(format!("{p}: {label}: transmissionTexture ignored (the factor is used)"));
     }
-    if m.volume().is_some() {
-        notes.insert(format!(
-            "{p}: {label}: KHR_materials_volume: absorption (attenuationColor, attenuationDistance) is not rendered"
-        ));
+    if let Some(volume) = m.volume() {
+        mat.k = absorption(volume.attenuation_color(), volume.attenuation_distance()).extend(0.0);
+        if volume.thickness_texture().is_some() {
+            notes.insert(format!(
+                "{p}: {label}: KHR_materials_volume: thicknessTexture ignored (rays measure the mesh)"
+            ));
+        }
     }
     Ok(MaterialOut { material: mat, uv, invisible })
+}
+
+/// KHR_materials_volume's absorption coefficient per unit length: light that travels
+/// `distance` inside keeps `color` (Beer–Lambert: σ = −ln(color)/distance per channel; an
+/// infinite distance, the default, absorbs nothing). A colour of 0 is taken as 1e-30 so that σ
+/// stays finite.
+pub fn absorption(color: [f32; 3], distance: f32) -> Vec3 {
+    if !(distance.is_finite() && distance > 0.0) {
+        return Vec3::ZERO;
+    }
+    Vec3::from(color.map(|c| (-(c.clamp(1e-30, 1.0) as f64).ln() / distance as f64) as f32))
 }

@@ -1,0 +1,283 @@
+#!/usr/bin/env python3
+"""Render one image on a Ray cluster: the samples are cut into K ranges (farm/ranges.py), each
+range is one Ray task that runs `kdtrace render --samples A..B --partial` on a worker node, and
+the driver merges the parts with `kdtrace merge` into the image a single `kdtrace render` of the
+same settings would write, bit for bit.
+
+    farm/setup.sh                                  # makes farm/.venv with the pinned Ray
+    farm/.venv/bin/python farm/ray_render.py scenes/cornell-box.toml --spp 1024 --tasks 32 \\
+        --out box.exr --address HEAD:6379 --width 1280 --height 720
+
+How the binary and the scene reach the workers (farm/README.md):
+  - by default, by path: KDTRACE (--kdtrace) and SCENE must exist at the same absolute paths on
+    every node (a shared file system, or the same container image);
+  - with --ship, through Ray's object store: the driver puts the binary and the scene file into
+    it once, and each node writes them into a cache folder under its temporary directory. Only
+    the one scene file travels, so a scene with companion files (an .obj's .mtl, textures, the
+    meshes a .toml names) must be compiled into one .kdc first (`kdtrace compile`).
+
+Failures: a task whose worker process or node dies is run again by Ray (--max-retries) on a node
+that is alive; the driver prints each start, each retry and each finished range, and with
+--json one JSON report on stdout. A range whose kdtrace fails (bad scene, bad flags) is not
+retried: the same command would fail again; the driver stops with kdtrace's message.
+
+Test hook (documented, used by tests/farm.rs only): KDTRACE_FARM_TEST_DELAY_S=SEC in the
+driver's environment makes every task wait SEC seconds after reporting its start and before
+running kdtrace, so that a test can kill a node while a range is certainly in flight.
+"""
+import argparse
+import hashlib
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+from ranges import sample_ranges  # noqa: E402  (farm/ranges.py, beside this file)
+
+DEFAULT_KDTRACE = os.path.join(os.path.dirname(HERE), "target", "release", "kdtrace")
+# `kdtrace render` flags passed through unchanged, with the values given here.
+RENDER_FLAGS = ["width", "height", "bounces", "eye", "target", "up", "fov", "seed"]
+
+
+def parse_args(argv):
+    p = argparse.ArgumentParser(
+        description="Render SCENE on a Ray cluster in K sample ranges and merge them into IMAGE.",
+        epilog="Environment: KDTRACE_FARM_TEST_DELAY_S (test hook, see the module's docstring).",
+    )
+    p.add_argument("scene", metavar="SCENE", help="scene file (.obj, .toml, .gltf/.glb, .kdc)")
+    p.add_argument("--spp", type=int, required=True, help="samples per pixel of the whole image")
+    p.add_argument("--tasks", type=int, required=True, help="number of sample ranges (Ray tasks)")
+    p.add_argument("--out", required=True, metavar="IMAGE", help="merged image, .exr or .png")
+    p.add_argument("--variance", metavar="VAR.exr", help="also write per-pixel variance (kdtrace merge --variance)")
+    p.add_argument("--address", help="Ray cluster address HOST:PORT (default: RAY_ADDRESS, else a local Ray)")
+    p.add_argument("--width", type=int)
+    p.add_argument("--height", type=int)
+    p.add_argument("--bounces", type=int)
+    p.add_argument("--eye", metavar="X,Y,Z")
+    p.add_argument("--target", metavar="X,Y,Z")
+    p.add_argument("--up", metavar="X,Y,Z")
+    p.add_argument("--fov", type=float, metavar="DEG")
+    p.add_argument("--seed", type=int)
+    p.add_argument("--kdtrace", default=DEFAULT_KDTRACE, help="the kdtrace binary (default: %(default)s)")
+    p.add_argument("--ship", action="store_true", help="send the binary and the scene file through Ray's object store")
+    p.add_argument("--cpus-per-task", type=int, default=1, help="CPUs Ray reserves per task; kdtrace runs as many threads (default 1)")
+    p.add_argument("--max-retries", type=int, default=3, help="Ray re-runs of a range whose worker or node died (default 3)")
+    p.add_argument("--parts-dir", help="keep the partial files here (default: a temporary folder, removed)")
+    p.add_argument("--json", action="store_true", help="print one JSON report on stdout at the end")
+    p.add_argument("--verbose", action="store_true", help="show Ray's own log lines")
+    a = p.parse_args(argv)
+    try:
+        a.ranges = sample_ranges(a.spp, a.tasks)
+    except ValueError as e:
+        p.error(str(e))
+    if a.cpus_per_task < 1 or a.max_retries < 0:
+        p.error("--cpus-per-task must be at least 1 and --max-retries at least 0")
+    for what, path in [("scene", a.scene), ("kdtrace binary", a.kdtrace)]:
+        if not os.path.isfile(path):
+            p.error(f"the {what} {path} does not exist")
+    a.scene = os.path.abspath(a.scene)
+    a.kdtrace = os.path.abspath(a.kdtrace)
+    return a
+
+
+def render_args(a):
+    """The flags every range's `kdtrace render` gets besides the scene, range and output."""
+    out = []
+    for name in RENDER_FLAGS:
+        value = getattr(a, name)
+        if value is not None:
+            out += [f"--{name}", str(value)]
+    return out
+
+
+def log(msg):
+    print(f"ray_render: {msg}", file=sys.stderr, flush=True)
+
+
+def die_with_parent():
+    """In the child before exec: kdtrace gets SIGKILL when the Ray worker that started it dies
+    (Linux prctl PR_SET_PDEATHSIG), so a crashed worker leaves no render running."""
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)
+
+
+class RenderFailed(Exception):
+    """kdtrace itself failed on a range: a deterministic error, not retried."""
+
+
+def main(argv=None):
+    a = parse_args(argv)
+    try:
+        import ray
+    except ImportError:
+        sys.exit("ray_render: Ray is not installed here: run farm/setup.sh and use farm/.venv/bin/python")
+    from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
+
+    test_delay = float(os.environ.get("KDTRACE_FARM_TEST_DELAY_S", "0"))
+
+    @ray.remote(num_cpus=0)
+    class Ledger:
+        """Where the tasks report their starts, on the driver's node: a start for a range
+        that already started once is Ray's retry of it."""
+
+        def __init__(self):
+            self.events = []
+            self.nodes = {}
+
+        def started(self, index, node_id, ip):
+            self.nodes.setdefault(index, []).append((node_id, ip))
+            attempt = len(self.nodes[index])
+            self.events.append({"index": index, "node_id": node_id, "ip": ip, "attempt": attempt,
+                                "previous": self.nodes[index][-2] if attempt > 1 else None})
+            return attempt
+
+        def since(self, k):
+            return self.events[k:]
+
+    def materialize(job):
+        """The paths of the binary and the scene on this node."""
+        if not job["ship"]:
+            for what, path in [("kdtrace binary", job["kdtrace"]), ("scene", job["scene"])]:
+                if not os.path.isfile(path):
+                    raise RenderFailed(f"the {what} {path} does not exist on node {ray.util.get_node_ip_address()} "
+                                       "(without --ship, it must be at the same path on every node)")
+            return job["kdtrace"], job["scene"]
+        cache = os.path.join(tempfile.gettempdir(), "kdtrace-farm-cache", job["ship_key"])
+        paths = os.path.join(cache, "kdtrace"), os.path.join(cache, job["scene_name"])
+        if not all(os.path.isfile(p) for p in paths):
+            os.makedirs(cache, exist_ok=True)
+            for path, ref, mode in zip(paths, job["ship_refs"], (0o755, 0o644)):
+                tmp = f"{path}.{os.getpid()}.tmp"
+                with open(tmp, "wb") as f:
+                    f.write(ray.get(ref))
+                os.chmod(tmp, mode)
+                os.replace(tmp, path)  # atomic: a task beside this one sees all or nothing
+        return paths
+
+    @ray.remote
+    def render_range(index, start, end, job, ledger):
+        node_id = ray.get_runtime_context().get_node_id()
+        ip = ray.util.get_node_ip_address()
+        attempt = ray.get(ledger.started.remote(index, node_id, ip))
+        if job["test_delay_s"] > 0:
+            time.sleep(job["test_delay_s"])
+        kdtrace, scene = materialize(job)
+        t0 = time.time()
+        with tempfile.TemporaryDirectory(prefix="kdtrace-farm-") as d:
+            part = os.path.join(d, f"part-{index:05d}.kdp")
+            cmd = [kdtrace, "render", scene, "--samples", f"{start}..{end}", "--partial", part, *job["args"]]
+            env = dict(os.environ, RAYON_NUM_THREADS=str(job["threads"]))
+            proc = subprocess.run(cmd, capture_output=True, text=True, env=env, preexec_fn=die_with_parent)
+            if proc.returncode != 0:
+                raise RenderFailed(f"`{' '.join(cmd)}` on {ip} exited with {proc.returncode}:\n{proc.stderr.strip()}")
+            with open(part, "rb") as f:
+                data = f.read()
+        return {"index": index, "node_id": node_id, "ip": ip, "attempt": attempt,
+                "render_s": time.time() - t0, "data": data}
+
+    t_start = time.time()
+    import logging
+
+    ray.init(address=a.address, log_to_driver=a.verbose, logging_level=logging.INFO if a.verbose else logging.WARNING)
+    nodes = [n for n in ray.nodes() if n["Alive"]]
+    cpus = sum(n["Resources"].get("CPU", 0) for n in nodes)
+    log(f"cluster: {len(nodes)} nodes, {cpus:g} CPUs; {a.tasks} ranges of {a.spp} samples, {a.cpus_per_task} CPU(s) each")
+
+    job = {"kdtrace": a.kdtrace, "scene": a.scene, "args": render_args(a), "ship": a.ship,
+           "threads": a.cpus_per_task, "test_delay_s": test_delay}
+    if a.ship:
+        if not a.scene.endswith(".kdc"):
+            log(f"warning: --ship sends {a.scene} alone; files it names do not travel (compile it to a .kdc)")
+        blobs = [open(a.kdtrace, "rb").read(), open(a.scene, "rb").read()]
+        key = hashlib.sha256()
+        for b in blobs:
+            key.update(hashlib.sha256(b).digest())
+        job.update(ship_key=key.hexdigest()[:32], scene_name=os.path.basename(a.scene),
+                   ship_refs=[ray.put(b) for b in blobs])
+
+    here = ray.get_runtime_context().get_node_id()
+    ledger = Ledger.options(scheduling_strategy=NodeAffinitySchedulingStrategy(here, soft=True)).remote()
+    task = render_range.options(num_cpus=a.cpus_per_task, max_retries=a.max_retries, retry_exceptions=False)
+    pending = {task.remote(i, s, e, job, ledger): i for i, (s, e) in enumerate(a.ranges)}
+
+    report = [{"index": i, "samples": f"{s}..{e}", "attempts": 0, "nodes": []} for i, (s, e) in enumerate(a.ranges)]
+    seen, done, parts = 0, 0, {}
+
+    def show_events():
+        nonlocal seen
+        for ev in ray.get(ledger.since.remote(seen)):
+            seen += 1
+            r = report[ev["index"]]
+            r["attempts"] = ev["attempt"]
+            r["nodes"].append(ev["ip"])
+            where = f"{ev['ip']} (node {ev['node_id'][:8]})"
+            if ev["attempt"] == 1:
+                log(f"range {r['samples']} started on {where}")
+            else:
+                other = "another node" if ev["previous"][0] != ev["node_id"] else "the same node"
+                log(f"range {r['samples']} retried on {other} (attempt {ev['attempt']}): {where}, "
+                    f"after its run on {ev['previous'][1]} was lost")
+
+    try:
+        while pending:
+            ready, _ = ray.wait(list(pending), num_returns=1, timeout=0.5)
+            show_events()
+            for ref in ready:
+                i = pending.pop(ref)
+                try:
+                    res = ray.get(ref)
+                except ray.exceptions.RayTaskError as e:
+                    cause = e.as_instanceof_cause()
+                    raise SystemExit(f"ray_render: range {report[i]['samples']} failed: {cause}") from None
+                except ray.exceptions.RayError as e:
+                    raise SystemExit(f"ray_render: range {report[i]['samples']} was lost after "
+                                     f"{a.max_retries} retries: {type(e).__name__}: {e}") from None
+                done += 1
+                parts[i] = res["data"]
+                report[i].update(node=res["ip"], render_s=round(res["render_s"], 3), bytes=len(res["data"]))
+                log(f"range {report[i]['samples']} done on {res['ip']} in {res['render_s']:.2f} s "
+                    f"(attempt {res['attempt']}; {done}/{a.tasks} ranges done)")
+        show_events()
+    finally:
+        ray.shutdown()
+    render_wall = time.time() - t_start
+
+    t_merge = time.time()
+    parts_dir = a.parts_dir or tempfile.mkdtemp(prefix="kdtrace-farm-parts-")
+    os.makedirs(parts_dir, exist_ok=True)
+    try:
+        paths = []
+        for i in range(a.tasks):
+            path = os.path.join(parts_dir, f"part-{i:05d}.kdp")
+            with open(path, "wb") as f:
+                f.write(parts[i])
+            paths.append(path)
+        cmd = [a.kdtrace, "merge", *paths, "--out", a.out] + (["--variance", a.variance] if a.variance else [])
+        proc = subprocess.run(cmd, capture_output=True, text=True)
+        if proc.returncode != 0:
+            sys.exit(f"ray_render: `{' '.join(cmd)}` exited with {proc.returncode}:\n{proc.stderr.strip()}")
+    finally:
+        if not a.parts_dir:
+            shutil.rmtree(parts_dir, ignore_errors=True)
+    merge_s = time.time() - t_merge
+    retries = sum(max(r["attempts"] - 1, 0) for r in report)
+    log(f"merged {a.tasks} ranges into {a.out} in {merge_s:.2f} s; {retries} retried; "
+        f"{render_wall + merge_s:.1f} s in all")
+    if a.json:
+        print(json.dumps({
+            "scene": a.scene, "out": a.out, "spp": a.spp, "tasks": a.tasks, "nodes": len(nodes),
+            "retries": retries, "render_wall_s": round(render_wall, 3), "merge_s": round(merge_s, 3),
+            "part_bytes": sum(len(p) for p in parts.values()), "ranges": report,
+        }))
+
+
+if __name__ == "__main__":
+    main()

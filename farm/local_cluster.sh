@@ -8,7 +8,8 @@
 # Run it inside a network namespace of its own, where only loopback exists, so that no Ray port
 # is reachable from outside and every Ray process ends with the namespace (needs root):
 #   unshare --net --pid --fork --mount-proc bash -c \
-#     'ip link set lo up && farm/local_cluster.sh /tmp/kdray 2 && farm/.venv/bin/python farm/ray_render.py ... --address 127.0.0.1:6379'
+#     'ip link set lo up && farm/local_cluster.sh /tmp/kdray 2 &&
+#      RAY_AUTH_MODE=disabled farm/.venv/bin/python farm/ray_render.py ... --address 127.0.0.1:6379'
 # Used by tests/farm.rs and bench/farm_scaling.sh.
 #   farm/local_cluster.sh DIR WORKERS [CPUS]
 set -euo pipefail
@@ -26,6 +27,10 @@ if [ ! -x "$ray" ]; then
 fi
 mkdir -p "$dir"
 export RAY_USAGE_STATS_ENABLED=0
+# No token authentication: this cluster is reachable on loopback only, inside its network
+# namespace. (Explicitly: Ray turns token authentication on by itself where ~/.ray/auth_token
+# exists, which a local `ray.init()` writes.) The driver run against it needs the same setting.
+export RAY_AUTH_MODE=disabled
 common=(--object-store-memory 100000000 --disable-usage-stats)
 if ! "$ray" start --head --node-ip-address 127.0.0.1 --port 6379 --num-cpus 0 --include-dashboard false \
   --temp-dir "$dir/head" "${common[@]}" >"$dir/head.log" 2>&1; then

@@ -42,7 +42,7 @@ from ranges import sample_ranges  # noqa: E402  (farm/ranges.py, beside this fil
 
 DEFAULT_KDTRACE = os.path.join(os.path.dirname(HERE), "target", "release", "kdtrace")
 # `kdtrace render` flags passed through unchanged, with the values given here.
-RENDER_FLAGS = ["width", "height", "bounces", "eye", "target", "up", "fov", "seed"]
+RENDER_FLAGS = ["width", "height", "bounces", "eye", "target", "up", "fov", "seed", "device"]
 
 
 def parse_args(argv):
@@ -64,9 +64,11 @@ def parse_args(argv):
     p.add_argument("--up", metavar="X,Y,Z")
     p.add_argument("--fov", type=float, metavar="DEG")
     p.add_argument("--seed", type=int)
+    p.add_argument("--device", help="kdtrace render --device on the workers (cpu, gpu, all, ...; default cpu)")
     p.add_argument("--kdtrace", default=DEFAULT_KDTRACE, help="the kdtrace binary (default: %(default)s)")
     p.add_argument("--ship", action="store_true", help="send the binary and the scene file through Ray's object store")
     p.add_argument("--cpus-per-task", type=int, default=1, help="CPUs Ray reserves per task; kdtrace runs as many threads (default 1)")
+    p.add_argument("--gpus-per-task", type=float, default=0, help="GPUs Ray reserves per task, for --device gpu (default 0)")
     p.add_argument("--max-retries", type=int, default=3, help="Ray re-runs of a range whose worker or node died (default 3)")
     p.add_argument("--parts-dir", help="keep the partial files here (default: a temporary folder, removed)")
     p.add_argument("--json", action="store_true", help="print one JSON report on stdout at the end")
@@ -205,7 +207,8 @@ def main(argv=None):
 
     here = ray.get_runtime_context().get_node_id()
     ledger = Ledger.options(scheduling_strategy=NodeAffinitySchedulingStrategy(here, soft=True)).remote()
-    task = render_range.options(num_cpus=a.cpus_per_task, max_retries=a.max_retries, retry_exceptions=False)
+    task = render_range.options(num_cpus=a.cpus_per_task, num_gpus=a.gpus_per_task, max_retries=a.max_retries,
+                                retry_exceptions=False)
     pending = {task.remote(i, s, e, job, ledger): i for i, (s, e) in enumerate(a.ranges)}
 
     report = [{"index": i, "samples": f"{s}..{e}", "attempts": 0, "nodes": []} for i, (s, e) in enumerate(a.ranges)]

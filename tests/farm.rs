@@ -149,6 +149,8 @@ fn ray_farm_survives_a_killed_worker() {
         // The driver's documented test hook: each task waits a second after reporting its
         // start, so the node killed below is certainly in the middle of a range.
         .env("KDTRACE_FARM_TEST_DELAY_S", "1")
+        // As farm/local_cluster.sh's nodes: no token authentication (loopback only).
+        .env("RAY_AUTH_MODE", "disabled")
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()

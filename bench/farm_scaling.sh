@@ -5,7 +5,8 @@
 #     worker node of farm/local_cluster.sh has one CPU) and with all threads;
 #   - start-up per task: a 1×1-pixel, 1-sample render's wall time (process start, scene parse
 #     and k-d build, or the .kdc load; with DEVICE=gpu also the kernel compile), and its parts
-#     (load_s, build_s, prepare_s) for the scene file and for its .kdc;
+#     (load_s, build_s, prepare_s) for the scene file and for its .kdc; plus Ray's dispatch per
+#     task (the first Ray run's wall time less connecting and the ranges' renders, per task);
 #   - the partial file's size at WIDTH×HEIGHT, and the merge's speed (TASKS parts);
 #   - `farm/ray_render.py` on a local cluster of W one-CPU worker nodes for W in WORKERS, inside
 #     a network namespace of its own (farm/local_cluster.sh; needs root for unshare).
@@ -47,13 +48,14 @@ runs = []
 for _ in range(3):
     t = time.perf_counter()
     p = subprocess.run([bin, "render", scene, "--spp", "1", "--width", "1", "--height", "1", "--device", device,
-                        "--out", dest + ".png", "--json"], capture_output=True, text=True, check=True)
+                        "--out", dest + ".exr", "--json"], capture_output=True, text=True, check=True)
     runs.append(dict(json.loads(p.stdout), wall_s=time.perf_counter() - t))
 json.dump(min(runs, key=lambda r: r["wall_s"]), open(dest, "w"))
 PY
 }
 startup scene "$scene"
 if [ -s "$out/scene.kdc" ]; then startup kdc "$out/scene.kdc"; fi
+rm -f "$out"/startup-*.exr
 
 # Partial files: TASKS ranges at the full size, their bytes, and the merge's time.
 mapfile -t ranges < <(python3 farm/ranges.py --spp "$spp" --tasks "$tasks")
@@ -78,14 +80,20 @@ rm -f "$out"/part-*.kdp
 # Local Ray clusters of W one-CPU worker nodes.
 for w in $workers; do
   echo "farm_scaling.sh: Ray, $w worker node(s)" >&2
-  unshare --net --pid --fork --mount-proc bash -c '
+  cluster=$(mktemp -d /tmp/kdray-XXXXXX) # short: Ray's socket paths live under it
+  if ! unshare --net --pid --fork --mount-proc bash -c '
     set -euo pipefail
     ip link set lo up
-    farm/local_cluster.sh "$1/cluster-$2" "$2" 1
+    farm/local_cluster.sh "${10}" "$2" 1
     RAY_AUTH_MODE=disabled farm/.venv/bin/python farm/ray_render.py "$3" --spp "$4" --tasks "$5" --address 127.0.0.1:6379 --json \
       --kdtrace "$6" --out "$1/ray-$2.exr" --width "$7" --height "$8" --bounces "$9" | tail -n 1 >"$1/ray-$2.json"
-  ' bash "$out" "$w" "$scene" "$spp" "$tasks" "$bin" "$width" "$height" "$bounces" 2>"$out/ray-$w.log"
-  rm -rf "$out/cluster-$w"
+  ' bash "$out" "$w" "$scene" "$spp" "$tasks" "$bin" "$width" "$height" "$bounces" "$cluster" 2>"$out/ray-$w.log"; then
+    echo "farm_scaling.sh: the Ray run with $w worker(s) failed; the end of $out/ray-$w.log:" >&2
+    grep -v network_util "$out/ray-$w.log" | tail -n 15 >&2
+    rm -rf "$cluster"
+    exit 1
+  fi
+  rm -rf "$cluster"
 done
 
 "$py" - "$out" "$spp" "$workers" <<'PY'
@@ -97,6 +105,11 @@ start = load("startup-scene.json")
 kdc = load("startup-kdc.json") if os.path.exists(os.path.join(out, "startup-kdc.json")) else None
 merge = load("merge.json")
 ray = {w: load(f"ray-{w}.json") for w in workers}
+# Ray's cost per task beyond kdtrace's own run (render_s, process start included): in the first
+# run, each of its W workers ran tasks/W ranges one after another in the wall time less connecting.
+r0, w0 = ray[workers[0]], int(workers[0])
+busy = r0["render_wall_s"] - r0["connect_s"]
+dispatch = max(0.0, (busy - sum(r["render_s"] for r in r0["ranges"]) / w0) / (r0["tasks"] / w0))
 res = {
     "scene": one["scene"], "width": one["width"], "height": one["height"], "spp": spp, "device": one["device"],
     "t_sample_1_thread_s": one["render_s"] / spp, "t_sample_all_threads_s": allt["render_s"] / spp,
@@ -104,10 +117,12 @@ res = {
     "startup_scene": {k: start[k] for k in ("wall_s", "load_s", "build_s", "prepare_s")},
     "startup_kdc": {k: kdc[k] for k in ("wall_s", "load_s", "build_s", "prepare_s")} if kdc else None,
     "merge": merge,
-    "ray": {w: {"render_wall_s": r["render_wall_s"], "merge_s": r["merge_s"], "retries": r["retries"],
-                "part_bytes": r["part_bytes"]} for w, r in ray.items()},
+    "ray": {w: {"connect_s": r["connect_s"], "render_wall_s": r["render_wall_s"], "merge_s": r["merge_s"],
+                "retries": r["retries"], "part_bytes": r["part_bytes"]} for w, r in ray.items()},
+    "ray_dispatch_per_task_s": dispatch,
     # The model's inputs: one-CPU nodes, as in the local runs.
-    "model_inputs": {"spp": spp, "t_sample_s": one["render_s"] / spp, "start_s": start["wall_s"],
+    # start: the process's start-up and Ray's dispatch of its task.
+    "model_inputs": {"spp": spp, "t_sample_s": one["render_s"] / spp, "start_s": start["wall_s"] + dispatch,
                      "part_bytes": merge["part_bytes"],
                      "merge_bytes_per_s": merge["part_bytes"] * merge["parts"] / merge["merge_s"]},
 }
@@ -117,6 +132,7 @@ print(f"start-up: {start['wall_s']:.3f} s (load {start['load_s']:.3f}, build {st
       + (f"; from the .kdc {kdc['wall_s']:.3f} s" if kdc else ""))
 print(f"part: {merge['part_bytes']} bytes; merge of {merge['parts']} parts {merge['merge_s']:.3f} s; "
       f"merged = single render: {merge['merged_equals_single']}")
+print(f"Ray: {dispatch:.3f} s per task beyond kdtrace's own run (from the {workers[0]}-worker run)")
 base = ray[workers[0]]["render_wall_s"]
 for w in workers:
     r = ray[w]

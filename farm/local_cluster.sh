@@ -25,6 +25,11 @@ if [ ! -x "$ray" ]; then
   echo "farm/local_cluster.sh: $ray is missing: run farm/setup.sh first" >&2
   exit 1
 fi
+# Ray's socket paths (DIR/worker-N/session_.../sockets/plasma_store) must fit in 107 bytes.
+if [ ${#dir} -gt 40 ]; then
+  echo "farm/local_cluster.sh: DIR $dir is too long for Ray's socket paths (at most 40 characters; e.g. /tmp/kdray)" >&2
+  exit 2
+fi
 mkdir -p "$dir"
 export RAY_USAGE_STATS_ENABLED=0
 # No token authentication: this cluster is reachable on loopback only, inside its network

@@ -189,6 +189,7 @@ def main(argv=None):
     import logging
 
     ray.init(address=a.address, log_to_driver=a.verbose, logging_level=logging.INFO if a.verbose else logging.WARNING)
+    connect_s = time.time() - t_start
     nodes = [n for n in ray.nodes() if n["Alive"]]
     cpus = sum(n["Resources"].get("CPU", 0) for n in nodes)
     log(f"cluster: {len(nodes)} nodes, {cpus:g} CPUs; {a.tasks} ranges of {a.spp} samples, {a.cpus_per_task} CPU(s) each")
@@ -277,7 +278,8 @@ def main(argv=None):
     if a.json:
         print(json.dumps({
             "scene": a.scene, "out": a.out, "spp": a.spp, "tasks": a.tasks, "nodes": len(nodes),
-            "retries": retries, "render_wall_s": round(render_wall, 3), "merge_s": round(merge_s, 3),
+            "retries": retries, "connect_s": round(connect_s, 3), "render_wall_s": round(render_wall, 3),
+            "merge_s": round(merge_s, 3),
             "part_bytes": sum(len(p) for p in parts.values()), "ranges": report,
         }))
 

@@ -5,7 +5,9 @@
           on multiples of 8 and end on one or at spp; bad K is refused.
   slurm   runs farm/slurm/render.sbatch once per array index (SLURM_ARRAY_TASK_ID=i, as Slurm
           would), then farm/slurm/merge.sbatch, and compares the merged EXR with one
-          `kdtrace render` of the same settings, byte for byte.
+          `kdtrace render` of the same settings, byte for byte; then farm/slurm/submit.sh
+          against a stand-in sbatch that runs the jobs at once (the array's sbatch options and
+          the merge's afterok dependency checked), and compares again.
   k8s     validates farm/k8s/*.yaml against the Kubernetes API schemas (kubernetes-validate,
           --strict), checks the Indexed Job's completions equal its TASKS, runs the render
           container's command once per index (JOB_COMPLETION_INDEX=i) and the merge Job's
@@ -97,6 +99,50 @@ def test_slurm(a):
                        capture_output=True, text=True)
     assert p.returncode != 0 and "outside 0..7" in p.stderr, p.stderr
     print("slurm: a missing part and an index outside the array are refused with their numbers")
+
+    # farm/slurm/submit.sh against a stand-in sbatch that runs each job at once, the array once
+    # per index, and records its command lines.
+    bin_dir = os.path.join(work, "bin")
+    os.makedirs(bin_dir)
+    with open(os.path.join(bin_dir, "sbatch"), "w") as f:
+        f.write(FAKE_SBATCH)
+    os.chmod(os.path.join(bin_dir, "sbatch"), 0o755)
+    out = os.path.join(work, "submitted.exr")
+    env = dict(os.environ, PATH=bin_dir + os.pathsep + os.environ["PATH"], KDTRACE=a.kdtrace, FAKE_SLURM_DIR=work)
+    p = run(["bash", os.path.join(FARM, "slurm", "submit.sh"), a.scene, str(SPP), str(TASKS), out,
+             os.path.join(work, "submitted-parts"), *RENDER_ARGS, "--", "--partition=render"], env, "slurm/submit.sh")
+    with open(os.path.join(work, "calls")) as f:
+        calls = f.read().splitlines()
+    assert len(calls) == 2, calls
+    assert "--array=0-7" in calls[0] and "--partition=render" in calls[0] and calls[0].endswith("render.sbatch"), calls
+    assert "--dependency=afterok:101" in calls[1] and calls[1].endswith("merge.sbatch"), calls
+    assert "render array 101 (tasks 0-7), merge job 102" in p.stdout, p.stdout
+    same_bytes(out, want, "slurm/submit.sh")
+
+
+# A stand-in for Slurm's sbatch (the test machines have no Slurm): runs the job script at once,
+# an array's once per index with SLURM_ARRAY_TASK_ID set, records its arguments in
+# $FAKE_SLURM_DIR/calls and prints a job id (101, 102, ...) as `sbatch --parsable` does.
+FAKE_SBATCH = r"""#!/usr/bin/env bash
+set -euo pipefail
+array="" script=""
+for arg in "$@"; do
+  case $arg in
+    --array=*) array=${arg#--array=} ;;
+    -*) ;;
+    *) script=$arg ;;
+  esac
+done
+id=$(( $(cat "$FAKE_SLURM_DIR/last-id" 2>/dev/null || echo 100) + 1 ))
+echo "$id" >"$FAKE_SLURM_DIR/last-id"
+echo "$*" >>"$FAKE_SLURM_DIR/calls"
+if [ -n "$array" ]; then
+  for ((i = ${array%-*}; i <= ${array#*-}; i++)); do SLURM_ARRAY_TASK_ID=$i bash "$script" >&2; done
+else
+  bash "$script" >&2
+fi
+echo "$id"
+"""
 
 
 def container(doc):

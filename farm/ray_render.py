@@ -115,111 +115,110 @@ class RenderFailed(Exception):
     """kdtrace itself failed on a range: a deterministic error, not retried."""
 
 
-def main(argv=None):
-    a = parse_args(argv)
-    try:
-        import ray
-    except ImportError:
-        sys.exit("ray_render: Ray is not installed here: run farm/setup.sh and use farm/.venv/bin/python")
-    from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
+# What runs on the cluster. Plain Python here; main() makes them a Ray actor and a Ray task
+# (ray.remote), after checking that Ray is installed.
 
-    test_delay = float(os.environ.get("KDTRACE_FARM_TEST_DELAY_S", "0"))
 
-    @ray.remote(num_cpus=0)
-    class Ledger:
-        """Where the tasks report their starts, on the driver's node: a start for a range
-        that already started once is Ray's retry of it."""
+class Ledger:
+    """Where the tasks report their starts, an actor on the driver's node: a second start of
+    a range is Ray's retry of it."""
 
-        def __init__(self):
-            self.events = []
-            self.nodes = {}
+    def __init__(self):
+        self.events = []
+        self.nodes = {}
 
-        def started(self, index, node_id, ip):
-            self.nodes.setdefault(index, []).append((node_id, ip))
-            attempt = len(self.nodes[index])
-            self.events.append({"index": index, "node_id": node_id, "ip": ip, "attempt": attempt,
-                                "previous": self.nodes[index][-2] if attempt > 1 else None})
-            return attempt
+    def started(self, index, node_id, ip):
+        self.nodes.setdefault(index, []).append((node_id, ip))
+        attempt = len(self.nodes[index])
+        self.events.append({"index": index, "node_id": node_id, "ip": ip, "attempt": attempt,
+                            "previous": self.nodes[index][-2] if attempt > 1 else None})
+        return attempt
 
-        def since(self, k):
-            return self.events[k:]
+    def since(self, k):
+        return self.events[k:]
 
-    def materialize(job):
-        """The paths of the binary and the scene on this node."""
-        if not job["ship"]:
-            for what, path in [("kdtrace binary", job["kdtrace"]), ("scene", job["scene"])]:
-                if not os.path.isfile(path):
-                    raise RenderFailed(f"the {what} {path} does not exist on node {ray.util.get_node_ip_address()} "
-                                       "(without --ship, it must be at the same path on every node)")
-            return job["kdtrace"], job["scene"]
-        cache = os.path.join(tempfile.gettempdir(), "kdtrace-farm-cache", job["ship_key"])
-        paths = os.path.join(cache, "kdtrace"), os.path.join(cache, job["scene_name"])
-        if not all(os.path.isfile(p) for p in paths):
-            os.makedirs(cache, exist_ok=True)
-            for path, ref, mode in zip(paths, job["ship_refs"], (0o755, 0o644)):
-                tmp = f"{path}.{os.getpid()}.tmp"
-                with open(tmp, "wb") as f:
-                    f.write(ray.get(ref))
-                os.chmod(tmp, mode)
-                os.replace(tmp, path)  # atomic: a task beside this one sees all or nothing
-        return paths
 
-    @ray.remote
-    def render_range(index, start, end, job, ledger):
-        node_id = ray.get_runtime_context().get_node_id()
-        ip = ray.util.get_node_ip_address()
-        attempt = ray.get(ledger.started.remote(index, node_id, ip))
-        if job["test_delay_s"] > 0:
-            time.sleep(job["test_delay_s"])
-        kdtrace, scene = materialize(job)
-        t0 = time.time()
-        with tempfile.TemporaryDirectory(prefix="kdtrace-farm-") as d:
-            part = os.path.join(d, f"part-{index:05d}.kdp")
-            cmd = [kdtrace, "render", scene, "--samples", f"{start}..{end}", "--partial", part, *job["args"]]
-            env = dict(os.environ, RAYON_NUM_THREADS=str(job["threads"]))
-            proc = subprocess.run(cmd, capture_output=True, text=True, env=env, preexec_fn=die_with_parent)
-            if proc.returncode != 0:
-                raise RenderFailed(f"`{' '.join(cmd)}` on {ip} exited with {proc.returncode}:\n{proc.stderr.strip()}")
-            with open(part, "rb") as f:
-                data = f.read()
-        return {"index": index, "node_id": node_id, "ip": ip, "attempt": attempt,
-                "render_s": time.time() - t0, "data": data}
+def materialize(job, ip):
+    """The paths of the binary and the scene on this node: the shared paths, or with --ship
+    the copies in this node's cache (written from Ray's object store the first time)."""
+    import ray
 
-    t_start = time.time()
-    import logging
+    if not job["ship"]:
+        for what, path in [("kdtrace binary", job["kdtrace"]), ("scene", job["scene"])]:
+            if not os.path.isfile(path):
+                raise RenderFailed(f"the {what} {path} does not exist on node {ip} "
+                                   "(without --ship, it must be at the same path on every node)")
+        return job["kdtrace"], job["scene"]
+    cache = os.path.join(tempfile.gettempdir(), "kdtrace-farm-cache", job["ship_key"])
+    paths = os.path.join(cache, "kdtrace"), os.path.join(cache, job["scene_name"])
+    if not all(os.path.isfile(p) for p in paths):
+        os.makedirs(cache, exist_ok=True)
+        for path, ref, mode in zip(paths, job["ship_refs"], (0o755, 0o644)):
+            tmp = f"{path}.{os.getpid()}.tmp"
+            with open(tmp, "wb") as f:
+                f.write(ray.get(ref))
+            os.chmod(tmp, mode)
+            os.replace(tmp, path)  # atomic: a task beside this one sees all or nothing
+    return paths
 
-    ray.init(address=a.address, log_to_driver=a.verbose, logging_level=logging.INFO if a.verbose else logging.WARNING)
-    connect_s = time.time() - t_start
-    nodes = [n for n in ray.nodes() if n["Alive"]]
-    cpus = sum(n["Resources"].get("CPU", 0) for n in nodes)
-    log(f"cluster: {len(nodes)} nodes, {cpus:g} CPUs; {a.tasks} ranges of {a.spp} samples, {a.cpus_per_task} CPU(s) each")
 
-    job = {"kdtrace": a.kdtrace, "scene": a.scene, "args": render_args(a), "ship": a.ship,
-           "threads": a.cpus_per_task, "test_delay_s": test_delay}
-    if a.ship:
-        if not a.scene.endswith(".kdc"):
-            log(f"warning: --ship sends {a.scene} alone; files it names do not travel (compile it to a .kdc)")
-        blobs = [open(a.kdtrace, "rb").read(), open(a.scene, "rb").read()]
-        key = hashlib.sha256()
-        for b in blobs:
-            key.update(hashlib.sha256(b).digest())
-        job.update(ship_key=key.hexdigest()[:32], scene_name=os.path.basename(a.scene),
-                   ship_refs=[ray.put(b) for b in blobs])
+def render_range(index, start, end, job, ledger):
+    """One range on a worker: report the start, run `kdtrace render --partial`, return the
+    part's bytes."""
+    import ray
 
-    here = ray.get_runtime_context().get_node_id()
-    ledger = Ledger.options(scheduling_strategy=NodeAffinitySchedulingStrategy(here, soft=True)).remote()
-    task = render_range.options(num_cpus=a.cpus_per_task, num_gpus=a.gpus_per_task, max_retries=a.max_retries,
-                                retry_exceptions=False)
-    pending = {task.remote(i, s, e, job, ledger): i for i, (s, e) in enumerate(a.ranges)}
+    node_id = ray.get_runtime_context().get_node_id()
+    ip = ray.util.get_node_ip_address()
+    attempt = ray.get(ledger.started.remote(index, node_id, ip))
+    if job["test_delay_s"] > 0:
+        time.sleep(job["test_delay_s"])  # the documented test hook
+    kdtrace, scene = materialize(job, ip)
+    t0 = time.time()
+    with tempfile.TemporaryDirectory(prefix="kdtrace-farm-") as d:
+        part = os.path.join(d, f"part-{index:05d}.kdp")
+        cmd = [kdtrace, "render", scene, "--samples", f"{start}..{end}", "--partial", part, *job["args"]]
+        env = dict(os.environ, RAYON_NUM_THREADS=str(job["threads"]))
+        proc = subprocess.run(cmd, capture_output=True, text=True, env=env, preexec_fn=die_with_parent)
+        if proc.returncode != 0:
+            raise RenderFailed(f"`{' '.join(cmd)}` on {ip} exited with {proc.returncode}:\n{proc.stderr.strip()}")
+        with open(part, "rb") as f:
+            data = f.read()
+    return {"index": index, "node_id": node_id, "ip": ip, "attempt": attempt,
+            "render_s": time.time() - t0, "data": data}
 
-    report = [{"index": i, "samples": f"{s}..{e}", "attempts": 0, "nodes": []} for i, (s, e) in enumerate(a.ranges)]
-    seen, done, parts = 0, 0, {}
 
-    def show_events():
-        nonlocal seen
-        for ev in ray.get(ledger.since.remote(seen)):
-            seen += 1
-            r = report[ev["index"]]
+# The driver.
+
+
+def ship(a, ray):
+    """--ship: the binary and the scene into Ray's object store, once."""
+    if not a.scene.endswith(".kdc"):
+        log(f"warning: --ship sends {a.scene} alone; files it names do not travel (compile it to a .kdc)")
+    blobs = []
+    for path in (a.kdtrace, a.scene):
+        with open(path, "rb") as f:
+            blobs.append(f.read())
+    key = hashlib.sha256()
+    for b in blobs:
+        key.update(hashlib.sha256(b).digest())
+    return {"ship_key": key.hexdigest()[:32], "scene_name": os.path.basename(a.scene),
+            "ship_refs": [ray.put(b) for b in blobs]}
+
+
+class Progress:
+    """The report: one entry per range, and a line on stderr per start, retry and finish."""
+
+    def __init__(self, ranges):
+        self.ranges = [{"index": i, "samples": f"{s}..{e}", "attempts": 0, "nodes": []}
+                       for i, (s, e) in enumerate(ranges)]
+        self.seen = 0
+        self.done = 0
+
+    def started(self, events):
+        """The ledger's new start events."""
+        for ev in events:
+            self.seen += 1
+            r = self.ranges[ev["index"]]
             r["attempts"] = ev["attempt"]
             r["nodes"].append(ev["ip"])
             where = f"{ev['ip']} (node {ev['node_id'][:8]})"
@@ -230,57 +229,93 @@ def main(argv=None):
                 log(f"range {r['samples']} retried on {other} (attempt {ev['attempt']}): {where}, "
                     f"after its run on {ev['previous'][1]} was lost")
 
-    try:
-        while pending:
-            ready, _ = ray.wait(list(pending), num_returns=1, timeout=0.5)
-            show_events()
-            for ref in ready:
-                i = pending.pop(ref)
-                try:
-                    res = ray.get(ref)
-                except ray.exceptions.RayTaskError as e:
-                    cause = e.as_instanceof_cause()
-                    raise SystemExit(f"ray_render: range {report[i]['samples']} failed: {cause}") from None
-                except ray.exceptions.RayError as e:
-                    raise SystemExit(f"ray_render: range {report[i]['samples']} was lost after "
-                                     f"{a.max_retries} retries: {type(e).__name__}: {e}") from None
-                done += 1
-                parts[i] = res["data"]
-                report[i].update(node=res["ip"], render_s=round(res["render_s"], 3), bytes=len(res["data"]))
-                log(f"range {report[i]['samples']} done on {res['ip']} in {res['render_s']:.2f} s "
-                    f"(attempt {res['attempt']}; {done}/{a.tasks} ranges done)")
-        show_events()
-    finally:
-        ray.shutdown()
-    render_wall = time.time() - t_start
+    def finished(self, res):
+        self.done += 1
+        r = self.ranges[res["index"]]
+        r.update(node=res["ip"], render_s=round(res["render_s"], 3), bytes=len(res["data"]))
+        log(f"range {r['samples']} done on {res['ip']} in {res['render_s']:.2f} s "
+            f"(attempt {res['attempt']}; {self.done}/{len(self.ranges)} ranges done)")
 
-    t_merge = time.time()
+    def retries(self):
+        return sum(max(r["attempts"] - 1, 0) for r in self.ranges)
+
+
+def run_ranges(a, ray, parts_dir):
+    """Every range as a Ray task; each part written into parts_dir as it arrives. Returns the
+    progress report and the parts' paths in range order."""
+    from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
+
+    job = {"kdtrace": a.kdtrace, "scene": a.scene, "args": render_args(a), "ship": a.ship,
+           "threads": a.cpus_per_task, "test_delay_s": float(os.environ.get("KDTRACE_FARM_TEST_DELAY_S", "0"))}
+    if a.ship:
+        job.update(ship(a, ray))
+    here = ray.get_runtime_context().get_node_id()
+    ledger = ray.remote(num_cpus=0)(Ledger).options(
+        scheduling_strategy=NodeAffinitySchedulingStrategy(here, soft=True)).remote()
+    task = ray.remote(render_range).options(num_cpus=a.cpus_per_task, num_gpus=a.gpus_per_task,
+                                            max_retries=a.max_retries, retry_exceptions=False)
+    pending = {task.remote(i, s, e, job, ledger): i for i, (s, e) in enumerate(a.ranges)}
+    progress = Progress(a.ranges)
+    paths = [os.path.join(parts_dir, f"part-{i:05d}.kdp") for i in range(a.tasks)]
+    while pending:
+        ready, _ = ray.wait(list(pending), num_returns=1, timeout=0.5)
+        progress.started(ray.get(ledger.since.remote(progress.seen)))
+        for ref in ready:
+            samples = progress.ranges[pending.pop(ref)]["samples"]
+            try:
+                res = ray.get(ref)
+            except ray.exceptions.RayTaskError as e:
+                sys.exit(f"ray_render: range {samples} failed: {e.as_instanceof_cause()}")
+            except ray.exceptions.RayError as e:
+                sys.exit(f"ray_render: range {samples} was lost after {a.max_retries} retries: "
+                         f"{type(e).__name__}: {e}")
+            with open(paths[res["index"]], "wb") as f:
+                f.write(res["data"])
+            progress.finished(res)
+    progress.started(ray.get(ledger.since.remote(progress.seen)))
+    return progress, paths
+
+
+def main(argv=None):
+    a = parse_args(argv)
+    try:
+        import ray
+    except ImportError:
+        sys.exit("ray_render: Ray is not installed here: run farm/setup.sh and use farm/.venv/bin/python")
+    import logging
+
+    t_start = time.time()
+    ray.init(address=a.address, log_to_driver=a.verbose, logging_level=logging.INFO if a.verbose else logging.WARNING)
+    connect_s = time.time() - t_start
+    nodes = [n for n in ray.nodes() if n["Alive"]]
+    cpus = sum(n["Resources"].get("CPU", 0) for n in nodes)
+    log(f"cluster: {len(nodes)} nodes, {cpus:g} CPUs; {a.tasks} ranges of {a.spp} samples, {a.cpus_per_task} CPU(s) each")
+
     parts_dir = a.parts_dir or tempfile.mkdtemp(prefix="kdtrace-farm-parts-")
     os.makedirs(parts_dir, exist_ok=True)
     try:
-        paths = []
-        for i in range(a.tasks):
-            path = os.path.join(parts_dir, f"part-{i:05d}.kdp")
-            with open(path, "wb") as f:
-                f.write(parts[i])
-            paths.append(path)
+        try:
+            progress, paths = run_ranges(a, ray, parts_dir)
+        finally:
+            ray.shutdown()
+        render_wall = time.time() - t_start
+        t_merge = time.time()
         cmd = [a.kdtrace, "merge", *paths, "--out", a.out] + (["--variance", a.variance] if a.variance else [])
         proc = subprocess.run(cmd, capture_output=True, text=True)
         if proc.returncode != 0:
             sys.exit(f"ray_render: `{' '.join(cmd)}` exited with {proc.returncode}:\n{proc.stderr.strip()}")
+        merge_s = time.time() - t_merge
+        part_bytes = sum(os.path.getsize(p) for p in paths)
     finally:
         if not a.parts_dir:
             shutil.rmtree(parts_dir, ignore_errors=True)
-    merge_s = time.time() - t_merge
-    retries = sum(max(r["attempts"] - 1, 0) for r in report)
-    log(f"merged {a.tasks} ranges into {a.out} in {merge_s:.2f} s; {retries} retried; "
+    log(f"merged {a.tasks} ranges into {a.out} in {merge_s:.2f} s; {progress.retries()} retried; "
         f"{render_wall + merge_s:.1f} s in all")
     if a.json:
         print(json.dumps({
             "scene": a.scene, "out": a.out, "spp": a.spp, "tasks": a.tasks, "nodes": len(nodes),
-            "retries": retries, "connect_s": round(connect_s, 3), "render_wall_s": round(render_wall, 3),
-            "merge_s": round(merge_s, 3),
-            "part_bytes": sum(len(p) for p in parts.values()), "ranges": report,
+            "retries": progress.retries(), "connect_s": round(connect_s, 3), "render_wall_s": round(render_wall, 3),
+            "merge_s": round(merge_s, 3), "part_bytes": part_bytes, "ranges": progress.ranges,
         }))
 
 

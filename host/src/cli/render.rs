@@ -178,11 +178,10 @@ pub fn run(r: RenderArgs) -> Result<ExitCode> {
     let run = match (&devices, &r.partial) {
         (Devices::One(d), None) => run_device(*d, c, &s, &r.image)?,
         (_, partial) => {
-            let t = Instant::now();
-            let (nodes, primary, adapter, shares) = match &devices {
+            let (nodes, primary, adapter, shares, render_s) = match &devices {
                 Devices::One(d) => {
-                    let (nodes, adapter) = render_part(*d, c, &s, &r.image, range)?;
-                    (nodes, None, adapter, None)
+                    let (nodes, adapter, render_s) = render_part(*d, c, &s, &r.image, range)?;
+                    (nodes, None, adapter, None, render_s)
                 }
                 Devices::Many(units) => {
                     let bar = super::progress_bar(r.image.json, "devices");
@@ -197,10 +196,9 @@ pub fn run(r: RenderArgs) -> Result<ExitCode> {
                     let out = multi::render(c, &s, units, r.image.adapter.as_deref(), range, &shown)?;
                     bar.finish_and_clear();
                     let adapter = out.shares.iter().map(|s| s.device.as_str()).collect::<Vec<_>>().join(" + ");
-                    (out.fold.into_nodes(), out.primary, adapter, Some(out.shares))
+                    (out.fold.into_nodes(), out.primary, adapter, Some(out.shares), out.render_s)
                 }
             };
-            let render_s = t.elapsed().as_secs_f64();
             if let Some(path) = partial {
                 let part = Partial {
                     header: Header {
@@ -316,14 +314,14 @@ pub fn run(r: RenderArgs) -> Result<ExitCode> {
 }
 
 /// Renders samples `range` on one device, a block per pass with a progress bar: the fold's
-/// nodes and the device's name.
+/// nodes, the device's name and the seconds it rendered (after opening it and compiling).
 fn render_part(
     device: Device,
     c: &Compiled,
     s: &RenderSettings,
     a: &ImageArgs,
     range: [u32; 2],
-) -> Result<(Vec<Node>, String)> {
+) -> Result<(Vec<Node>, String, f64)> {
     let gpu = match device {
         Device::Cpu => None,
         Device::Gpu => Some(crate::render::gpu::Gpu::open(a.adapter.as_deref())?),
@@ -332,6 +330,7 @@ fn render_part(
         None => Box::new(crate::render::cpu::progressive(c, s)?),
         Some(g) => Box::new(g.progressive(c, s)?),
     };
+    let t = Instant::now();
     let bar = super::progress_bar(a.json, device.name());
     bar.set_length((range[1] - range[0]) as u64);
     p.start_at(range[0])?;
@@ -343,7 +342,8 @@ fn render_part(
         bar.set_position((at - range[0]) as u64);
     }
     bar.finish_and_clear();
-    Ok((p.nodes()?, p.device()))
+    let render_s = t.elapsed().as_secs_f64();
+    Ok((p.nodes()?, p.device(), render_s))
 }
 
 /// `render --partial --json`.

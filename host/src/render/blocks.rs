@@ -88,14 +88,13 @@ impl NodeId {
 
     /// Whether the fields agree: aligned blocks, samples within them, only a last block short.
     pub fn check(&self) -> Result<()> {
-        let (b, f) = (BLOCK_SAMPLES as u64, self.first as u64);
-        let full = (self.end_block() - self.first_block()) * b;
-        if self.level >= 32
-            || f != self.first_block() * b
-            || self.samples == 0
-            || self.samples as u64 > full
-            || self.samples as u64 <= full - b
-        {
+        // Wide enough for any u32 fields: a crafted file's node is an error, not an overflow.
+        let (b, f, n) = (BLOCK_SAMPLES as u128, self.first as u128, self.samples as u128);
+        if self.level >= 32 {
+            bail!("node {self:?} is not a node of the fold of {BLOCK_SAMPLES}-sample blocks");
+        }
+        let full = (1u128 << self.level) * b;
+        if f != self.first_block() as u128 * b || n == 0 || n > full || n <= full - b || f + n > u32::MAX as u128 {
             bail!("node {self:?} is not a node of the fold of {BLOCK_SAMPLES}-sample blocks");
         }
         Ok(())
@@ -341,5 +340,14 @@ mod tests {
             .insert(Node { id: NodeId { level: 1, index: 0, first: 0, samples: 3 }, sums: Sums::zero(1) })
             .is_err());
         assert!(f.insert(Node { id: NodeId::block(5, 8), sums: Sums::zero(2) }).is_err(), "size");
+        // Fields from a crafted file: errors, not overflows.
+        for id in [
+            NodeId { level: 40, index: 0, first: 0, samples: 8 },
+            NodeId { level: 3, index: u32::MAX, first: 0, samples: 64 },
+            NodeId { level: 0, index: u32::MAX / 8, first: u32::MAX / 8 * 8, samples: 8 },
+            NodeId { level: 31, index: 1, first: 0, samples: u32::MAX },
+        ] {
+            assert!(id.check().is_err(), "{id:?}");
+        }
     }
 }

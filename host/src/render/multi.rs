@@ -76,6 +76,8 @@ pub struct Outcome {
     pub fold: Fold,
     pub primary: Option<Vec<u32>>,
     pub shares: Vec<Share>,
+    /// Seconds from the devices' start (adapters open and pipelines compiled) to the last block.
+    pub render_s: f64,
 }
 
 /// A block done, or a device's failure, sent to the thread that folds.
@@ -130,38 +132,30 @@ pub fn render(
         })
         .collect();
     let (first, end) = (block_of(a), block_of(b - 1) + 1);
-    let next = Mutex::new(first);
-    let stop = AtomicBool::new(false);
     let workers = units.len() as u32;
+    // Each device's first block is its own (block `first + i` for device `i`), so every device
+    // renders at least one when there are enough and measures its speed on it; the rest go in
+    // runs from a shared counter.
+    let next = Mutex::new((first + workers).min(end));
+    let stop = AtomicBool::new(false);
     let (tx, rx) = mpsc::channel::<Message>();
     let mut fold = Fold::new(pixels);
     let mut primary = None;
     let mut failure = None;
+    let clock = Instant::now();
     std::thread::scope(|scope| {
         for (device, gpu) in gpus.iter().enumerate() {
-            let (tx, next, stop) = (tx.clone(), &next, &stop);
+            let (tx, next, stop, name) = (tx.clone(), &next, &stop, shares[device].device.clone());
             scope.spawn(move || {
                 let work = || -> Result<()> {
                     let mut dev: Box<dyn RunningSums> = match gpu {
                         None => Box::new(cpu::CpuSums::new(c, s)?),
                         Some(g) => Box::new(g.sums(c, s)?),
                     };
+                    let own = (first + device as u32).min(end);
+                    let mut run = own..(own + 1).min(end);
                     let mut per_block: Option<f64> = None;
-                    while !stop.load(Ordering::Relaxed) {
-                        let run = {
-                            let mut k = next.lock().map_err(|_| anyhow!("a device failed"))?;
-                            let left = end - *k;
-                            // The run this device renders in about `RUN_SECONDS`, at most its
-                            // share of what is left, so that no device holds the last blocks long.
-                            let fit = per_block.map_or(1.0, |t| (RUN_SECONDS / t.max(1e-9)).floor());
-                            let n = (fit as u32).clamp(1, (left / workers).max(1)).min(left);
-                            let run = *k..*k + n;
-                            *k += n;
-                            run
-                        };
-                        if run.is_empty() {
-                            break;
-                        }
+                    while !run.is_empty() && !stop.load(Ordering::Relaxed) {
                         for k in run {
                             let t = Instant::now();
                             let from = k * BLOCK_SAMPLES;
@@ -176,12 +170,20 @@ pub fn render(
                                 return Ok(());
                             }
                         }
+                        let mut k = next.lock().map_err(|_| anyhow!("another device failed"))?;
+                        let left = end - *k;
+                        // The run this device renders in about `RUN_SECONDS`, at most its share
+                        // of what is left, so that no device holds the last blocks long.
+                        let fit = per_block.map_or(1.0, |t| (RUN_SECONDS / t.max(1e-9)).floor());
+                        let n = (fit as u32).clamp(1, (left / workers).max(1)).min(left);
+                        run = *k..*k + n;
+                        *k += n;
                     }
                     Ok(())
                 };
                 if let Err(e) = work() {
                     stop.store(true, Ordering::Relaxed);
-                    let _ = tx.send(Message::Failed(e.context(format!("device {}", device + 1))));
+                    let _ = tx.send(Message::Failed(e.context(name)));
                 }
             });
         }
@@ -217,5 +219,5 @@ pub fn render(
     if let Some(e) = failure {
         return Err(e);
     }
-    Ok(Outcome { fold, primary, shares })
+    Ok(Outcome { fold, primary, shares, render_s: clock.elapsed().as_secs_f64() })
 }

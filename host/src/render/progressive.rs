@@ -18,9 +18,10 @@ use anyhow::{bail, Result};
 
 /// A render in progress on one device: the scene is prepared and the sums allocated once.
 pub trait Progressive {
-    /// Adds samples [start, start + count) of every pixel to its sums, in sample order (so any
-    /// split into passes sums the same numbers in the same order as one pass: bit-identical).
-    /// `start` must be the samples added so far; a pass of no samples does nothing.
+    /// Adds samples [start, start + count) of every pixel to its sums: each block's in sample
+    /// order from zero, completed blocks into the fold (`blocks`), so any split into passes
+    /// gives the bits of one pass. `start` must be the samples added so far; a pass of no
+    /// samples does nothing.
     fn pass(&mut self, start: u32, count: u32) -> Result<()>;
     /// The image accumulated so far (`spp` = samples added; a GPU reads its buffers back): the
     /// fold of the completed blocks with the running one as the last, so a render that stops

@@ -16,10 +16,11 @@ How the binary and the scene reach the workers (farm/README.md):
     the one scene file travels, so a scene with companion files (an .obj's .mtl, textures, the
     meshes a .toml names) must be compiled into one .kdc first (`kdtrace compile`).
 
-Failures: a task whose worker process or node dies is run again by Ray (--max-retries) on a node
-that is alive; the driver prints each start, each retry and each finished range, and with
---json one JSON report on stdout. A range whose kdtrace fails (bad scene, bad flags) is not
-retried: the same command would fail again; the driver stops with kdtrace's message.
+Failures: a task whose worker process or node dies, or whose kdtrace is killed by a signal, is
+run again by Ray (--max-retries) on a node that is alive; the driver prints each start, each
+retry and each finished range, and with --json one JSON report on stdout. A range whose kdtrace
+exits with an error (bad scene, bad flags) is not retried: the same command would fail again;
+the driver stops with kdtrace's message.
 
 Test hook (documented, used by tests/farm.rs only): KDTRACE_FARM_TEST_DELAY_S=SEC in the
 driver's environment makes every task wait SEC seconds after reporting its start and before
@@ -179,6 +180,11 @@ def render_range(index, start, end, job, ledger):
         cmd = [kdtrace, "render", scene, "--samples", f"{start}..{end}", "--partial", part, *job["args"]]
         env = dict(os.environ, RAYON_NUM_THREADS=str(job["threads"]))
         proc = subprocess.run(cmd, capture_output=True, text=True, env=env, preexec_fn=die_with_parent)
+        if proc.returncode < 0:
+            # Killed by a signal (the OOM killer, a node's shutdown): not kdtrace's verdict on the
+            # range, so Ray runs it again (retry_exceptions; a built-in type, so that Ray's check
+            # on the worker matches it).
+            raise InterruptedError(f"kdtrace on {ip} was killed by signal {-proc.returncode}")
         if proc.returncode != 0:
             raise RenderFailed(f"`{' '.join(cmd)}` on {ip} exited with {proc.returncode}:\n{proc.stderr.strip()}")
         with open(part, "rb") as f:
@@ -253,7 +259,7 @@ def run_ranges(a, ray, parts_dir):
     ledger = ray.remote(num_cpus=0)(Ledger).options(
         scheduling_strategy=NodeAffinitySchedulingStrategy(here, soft=True)).remote()
     task = ray.remote(render_range).options(num_cpus=a.cpus_per_task, num_gpus=a.gpus_per_task,
-                                            max_retries=a.max_retries, retry_exceptions=False)
+                                            max_retries=a.max_retries, retry_exceptions=[InterruptedError])
     pending = {task.remote(i, s, e, job, ledger): i for i, (s, e) in enumerate(a.ranges)}
     progress = Progress(a.ranges)
     paths = [os.path.join(parts_dir, f"part-{i:05d}.kdp") for i in range(a.tasks)]

@@ -255,9 +255,11 @@ def run_ranges(a, ray, parts_dir):
            "threads": a.cpus_per_task, "test_delay_s": float(os.environ.get("KDTRACE_FARM_TEST_DELAY_S", "0"))}
     if a.ship:
         job.update(ship(a, ray))
+    # The ledger lives on the driver's own node (hard affinity: a soft one lets Ray place it on
+    # a worker, whose death would take the ledger with it).
     here = ray.get_runtime_context().get_node_id()
     ledger = ray.remote(num_cpus=0)(Ledger).options(
-        scheduling_strategy=NodeAffinitySchedulingStrategy(here, soft=True)).remote()
+        scheduling_strategy=NodeAffinitySchedulingStrategy(here, soft=False)).remote()
     task = ray.remote(render_range).options(num_cpus=a.cpus_per_task, num_gpus=a.gpus_per_task,
                                             max_retries=a.max_retries, retry_exceptions=[InterruptedError])
     pending = {task.remote(i, s, e, job, ledger): i for i, (s, e) in enumerate(a.ranges)}

@@ -31,8 +31,14 @@ fn kdtrace() -> &'static str {
     env!("CARGO_BIN_EXE_kdtrace")
 }
 
+/// A name no other run shares: inside a PID namespace every test process is pid 1.
+fn unique() -> String {
+    let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap().subsec_nanos();
+    format!("{}-{nanos:x}", std::process::id())
+}
+
 fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("kdtrace-farm-{}-{name}", std::process::id()));
+    let d = std::env::temp_dir().join(format!("kdtrace-farm-{}-{name}", unique()));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
     d
@@ -110,8 +116,7 @@ fn ray_farm_survives_a_killed_worker() {
     let t0 = Instant::now();
     let work = scratch("ray");
     // Ray's socket paths must stay under 108 bytes: a short folder of its own.
-    let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap().subsec_nanos();
-    let cluster = PathBuf::from(format!("/tmp/kdray-{}-{nanos:x}", std::process::id()));
+    let cluster = PathBuf::from(format!("/tmp/kdray-{}", unique()));
     let up = Command::new("timeout")
         .args(["120", "bash"])
         .arg(repo("farm/local_cluster.sh"))

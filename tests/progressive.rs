@@ -1,5 +1,6 @@
-//! Progressive renders (`render::progressive`): passes of any split add the same samples in the
-//! same order as one render, so the sums equal `render`'s bit for bit, on the CPU and on lavapipe
+//! Progressive renders (`render::progressive`): passes of any split, across sample blocks or
+//! inside them, add the same samples in the same order as one render (`render::blocks`), so the
+//! sums equal `render`'s bit for bit, on the CPU and on lavapipe
 //! (opened by name; missing lavapipe is a failure), with either GPU dispatch; `image()` between
 //! passes holds the samples added so far.
 #[path = "common/paths.rs"]

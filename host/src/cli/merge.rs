@@ -4,8 +4,8 @@
 use super::print_json;
 use crate::files;
 use crate::image::io;
-use crate::render::blocks::Fold;
-use crate::render::partial::Partial;
+use crate::render::blocks::{Fold, BLOCK_SAMPLES};
+use crate::render::partial::{Header, Partial};
 use crate::render::Rendered;
 use crate::settings::Traversal;
 use anyhow::{anyhow, bail, Context, Result};
@@ -58,9 +58,10 @@ pub fn run(m: MergeArgs) -> Result<ExitCode> {
     let inputs: Vec<&Path> = m.parts.iter().map(PathBuf::as_path).collect();
     files::check_outputs(&outputs, &inputs)?;
     let t = Instant::now();
-    let parts: Vec<(&Path, Partial)> = inputs.iter().map(|&p| Ok((p, Partial::read(p)?))).collect::<Result<_>>()?;
-    let image = merge(&parts)?;
-    let (first, s) = (&parts[0].1.header, &parts[0].1.header.settings);
+    let headers: Vec<(&Path, Header)> =
+        inputs.iter().map(|&p| Ok((p, Partial::read_header(p)?))).collect::<Result<_>>()?;
+    let image = merge(&headers, Partial::read)?;
+    let (first, s) = (&headers[0].1, &headers[0].1.settings);
     let pixels = image.mean();
     if io::is_exr(&m.out) {
         io::write_image(&m.out, s.width, s.height, &pixels)?;
@@ -75,7 +76,7 @@ pub fn run(m: MergeArgs) -> Result<ExitCode> {
         print_json(&MergeReport {
             out: &m.out,
             variance: &m.variance,
-            parts: parts.len(),
+            parts: headers.len(),
             scene: &first.scene,
             scene_hash: &first.scene_hash,
             width: s.width,
@@ -88,7 +89,7 @@ pub fn run(m: MergeArgs) -> Result<ExitCode> {
         eprintln!(
             "{}: {} parts, {}x{} at {} spp: merged in {merge_s:.3} s",
             m.out.display(),
-            parts.len(),
+            headers.len(),
             s.width,
             s.height,
             image.spp
@@ -97,13 +98,12 @@ pub fn run(m: MergeArgs) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// Checks that `parts` are of one scene and settings and that their samples tile `0..N`, then
-/// folds their nodes as one render of `0..N` does (`render::blocks`).
-pub fn merge(parts: &[(&Path, Partial)]) -> Result<Rendered> {
-    let Some((first_path, first)) = parts.first() else { bail!("no part to merge") };
-    let h0 = &first.header;
-    for (path, p) in &parts[1..] {
-        let h = &p.header;
+/// Checks that the parts' headers are of one scene and settings and that their samples tile
+/// `0..N`, then folds their nodes, read by `read` one part at a time in sample order (the fold
+/// then holds a few nodes besides one part's), as one render of `0..N` does (`render::blocks`).
+pub fn merge(parts: &[(&Path, Header)], read: impl Fn(&Path) -> Result<Partial>) -> Result<Rendered> {
+    let Some((first_path, h0)) = parts.first() else { bail!("no part to merge") };
+    for (path, h) in &parts[1..] {
         if h.scene_hash != h0.scene_hash {
             bail!(
                 "{} and {} are renders of different scenes ({} hashes {}, {} hashes {}); parts must be of one \
@@ -127,34 +127,35 @@ pub fn merge(parts: &[(&Path, Partial)]) -> Result<Rendered> {
         }
     }
     // In sample order, each part must start where the previous one ended.
-    let mut order: Vec<&(&Path, Partial)> = parts.iter().collect();
-    order.sort_by_key(|(_, p)| p.header.samples);
-    let range = |p: &Partial| format!("samples {}..{}", p.header.samples[0], p.header.samples[1]);
+    let mut order: Vec<&(&Path, Header)> = parts.iter().collect();
+    order.sort_by_key(|(_, h)| h.samples);
+    let range = |h: &Header| format!("samples {}..{}", h.samples[0], h.samples[1]);
     let mut end = 0u32;
-    let mut previous: Option<&(&Path, Partial)> = None;
-    for item @ (path, p) in &order {
-        let [a, b] = p.header.samples;
+    let mut previous: Option<&(&Path, Header)> = None;
+    for item @ (path, h) in &order {
+        let [a, b] = h.samples;
         match previous {
             None if a != 0 => {
-                bail!("samples 0..{a} are missing: the first part, {} ({}), starts at {a}", path.display(), range(p))
+                bail!("samples 0..{a} are missing: the first part, {} ({}), starts at {a}", path.display(), range(h))
             }
             Some((prev_path, prev)) if a < end => {
-                bail!("{} ({}) and {} ({}) overlap", prev_path.display(), range(prev), path.display(), range(p))
+                bail!("{} ({}) and {} ({}) overlap", prev_path.display(), range(prev), path.display(), range(h))
             }
             Some((prev_path, prev)) if a > end => bail!(
                 "samples {end}..{a} are missing: no part holds them between {} ({}) and {} ({})",
                 prev_path.display(),
                 range(prev),
                 path.display(),
-                range(p)
+                range(h)
             ),
-            Some((prev_path, prev)) if !end.is_multiple_of(crate::render::blocks::BLOCK_SAMPLES) => bail!(
-                "{} ({}) ends inside a block of {} samples, so it must be the last part, yet {} ({}) follows",
+            // Parts start on blocks, so a gap is found first; kept for the rule's sake.
+            Some((prev_path, prev)) if !end.is_multiple_of(BLOCK_SAMPLES) => bail!(
+                "{} ({}) ends inside a block of {BLOCK_SAMPLES} samples, so it must be the last part, yet {} ({}) \
+                 follows",
                 prev_path.display(),
                 range(prev),
-                crate::render::blocks::BLOCK_SAMPLES,
                 path.display(),
-                range(p)
+                range(h)
             ),
             _ => {}
         }
@@ -163,9 +164,14 @@ pub fn merge(parts: &[(&Path, Partial)]) -> Result<Rendered> {
     }
     let s = &h0.settings;
     let mut fold = Fold::new(s.width as usize * s.height as usize);
-    for (path, p) in &order {
-        for n in &p.nodes {
-            fold.insert(n.clone()).with_context(|| format!("{}", path.display()))?;
+    for (path, h) in &order {
+        let part = read(path)?;
+        let p = &part.header;
+        if p.samples != h.samples || p.settings != h.settings || p.scene_hash != h.scene_hash {
+            bail!("{}: changed while being merged", path.display());
+        }
+        for n in part.nodes {
+            fold.insert(n).with_context(|| format!("{}", path.display()))?;
         }
     }
     let (sums, spp) = fold.total(None)?.ok_or_else(|| anyhow!("the parts hold no sample"))?;

@@ -1,4 +1,5 @@
-//! `kdtrace render`: one image on one device.
+//! `kdtrace render`: one image, or a partial render for `merge` (`--samples A..B --partial`), on
+//! one device or several at once (`--device all`, `render::multi`).
 use super::args::{Device, ImageArgs};
 use super::{load, print_json, run_device, settings, DeviceRun};
 use crate::files;
@@ -164,8 +165,11 @@ pub fn run(r: RenderArgs) -> Result<ExitCode> {
         if s.adaptive.is_some() {
             bail!("{what} renders the same samples in every pixel: --adaptive does not apply");
         }
-        if s.time_limit_s.is_some() {
-            bail!("{what} renders exactly the samples asked for: a time limit does not apply");
+        if r.image.scene.time_limit_s.is_some() {
+            bail!("{what} renders exactly the samples asked for: --time-limit does not apply");
+        }
+        if s.time_limit_s.take().is_some() {
+            eprintln!("warning: {what} renders exactly the samples asked for: the scene file's time limit is ignored");
         }
     }
     if let Some([_, b]) = r.samples {

@@ -2,7 +2,8 @@
 //!
 //! Each pass dispatches one invocation per pixel that adds a few samples to the pixel's running
 //! sum in a storage buffer, so progress can be reported between passes and no single dispatch
-//! runs long enough to trip a driver watchdog. The sum is read back once at the end.
+//! runs long enough to trip a driver watchdog. The sums hold one block of samples at a time
+//! (`blocks`): cleared at a block's start, read back at its end into the host's fold.
 use crate::render::blocks::{Node, Sums, BLOCK_SAMPLES};
 use crate::render::progressive::{Blocks, Progressive, RunningSums};
 use crate::render::{Compiled, Progress, Rendered};

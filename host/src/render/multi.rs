@@ -116,14 +116,16 @@ pub fn render(
     for g in gpus.iter().flatten() {
         g.prepare(c, s)?;
     }
+    // The CPU renders with a thread fewer per GPU: each GPU's thread records, submits and
+    // waits for its dispatches, and a CPU busy on every core would leave it waiting.
+    let gpu_count = gpus.iter().flatten().count();
+    let cpu_threads = rayon::current_num_threads().saturating_sub(gpu_count).max(1);
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(cpu_threads).build()?;
     let pixels = s.width as usize * s.height as usize;
-    let mut shares: Vec<Share> = units
+    let mut shares: Vec<Share> = gpus
         .iter()
-        .zip(&gpus)
-        .map(|(_, g)| Share {
-            device: g
-                .as_ref()
-                .map_or_else(|| format!("cpu ({} threads)", rayon::current_num_threads()), |g| g.adapter.name.clone()),
+        .map(|g| Share {
+            device: g.as_ref().map_or_else(|| format!("cpu ({cpu_threads} threads)"), |g| g.adapter.name.clone()),
             blocks: 0,
             samples: 0,
             share: 0.0,
@@ -145,7 +147,7 @@ pub fn render(
     let clock = Instant::now();
     std::thread::scope(|scope| {
         for (device, gpu) in gpus.iter().enumerate() {
-            let (tx, next, stop, name) = (tx.clone(), &next, &stop, shares[device].device.clone());
+            let (tx, next, stop, pool, name) = (tx.clone(), &next, &stop, &pool, shares[device].device.clone());
             scope.spawn(move || {
                 let work = || -> Result<()> {
                     let mut dev: Box<dyn RunningSums> = match gpu {
@@ -181,7 +183,9 @@ pub fn render(
                     }
                     Ok(())
                 };
-                if let Err(e) = work() {
+                // Only the CPU's work runs in its pool: a GPU's thread would hold one of its threads.
+                let result = if gpu.is_none() { pool.install(work) } else { work() };
+                if let Err(e) = result {
                     stop.store(true, Ordering::Relaxed);
                     let _ = tx.send(Message::Failed(e.context(name)));
                 }

@@ -154,43 +154,31 @@ impl Partial {
         Self::parse(&bytes).with_context(|| format!("{}", path.display()))
     }
 
+    /// Reads a file's header alone and checks it against the file's length (a merge checks
+    /// every part's header before it reads any sums, then holds one part's sums at a time).
+    pub fn read_header(path: &Path) -> Result<Header> {
+        let read = || -> Result<Header> {
+            use std::io::Read;
+            let mut file = std::fs::File::open(path).context("cannot read")?;
+            let len = file.metadata().context("cannot read")?.len();
+            let mut prefix = Vec::new();
+            (&mut file).take(16).read_to_end(&mut prefix).context("cannot read")?;
+            if prefix.len() == 16 {
+                let header_len = u32::from_le_bytes([prefix[12], prefix[13], prefix[14], prefix[15]]) as u64;
+                // No more than the file holds: a crafted length allocates nothing.
+                file.take(header_len.min(len.saturating_sub(16))).read_to_end(&mut prefix).context("cannot read")?;
+            }
+            Ok(parse_header(&prefix, len)?.0)
+        };
+        read().with_context(|| format!("{}", path.display()))
+    }
+
     /// Parses a file's bytes (`read` names the file in the error).
     pub fn parse(bytes: &[u8]) -> Result<Self> {
-        if bytes.len() < 16 || &bytes[..8] != MAGIC {
-            bail!("not a kdtrace partial render (no {:?} at its start)", std::str::from_utf8(MAGIC).unwrap_or(""));
-        }
-        let word = |at: usize| u32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]]);
-        let version = word(8);
-        if version != VERSION {
-            bail!("partial render format version {version}; this kdtrace reads version {VERSION}");
-        }
-        let header_len = word(12) as usize;
-        let Some(header_bytes) = bytes.get(16..16 + header_len) else {
-            bail!("truncated: the header needs {header_len} bytes, the file has {} after its start", bytes.len() - 16);
-        };
-        let header: Header = serde_json::from_slice(header_bytes).context("the header is not valid")?;
+        let (header, data_at) = parse_header(bytes, bytes.len() as u64)?;
         let s = &header.settings;
-        if s.block_samples != BLOCK_SAMPLES {
-            bail!("rendered in blocks of {} samples; this kdtrace folds blocks of {BLOCK_SAMPLES}", s.block_samples);
-        }
-        let pixels = s.width as u64 * s.height as u64;
-        if pixels == 0 || s.width > crate::settings::MAX_SIDE || s.height > crate::settings::MAX_SIDE {
-            bail!("image size {}x{} is not one kdtrace renders", s.width, s.height);
-        }
-        check_nodes(&header)?;
-        let node_bytes = pixels * 2 * 16;
-        let data = &bytes[16 + header_len..];
-        let want = node_bytes * header.nodes.len() as u64;
-        if data.len() as u64 != want {
-            bail!(
-                "{} bytes of sums for {} node(s) of {}x{} pixels, which need {want}{}",
-                data.len(),
-                header.nodes.len(),
-                s.width,
-                s.height,
-                if (data.len() as u64) < want { " (truncated)" } else { "" }
-            );
-        }
+        let node_bytes = s.width as usize * s.height as usize * 2 * 16;
+        let data = &bytes[data_at..];
         let floats = |chunk: &[u8]| -> Vec<Vec4> {
             chunk
                 .as_chunks::<16>()
@@ -205,7 +193,7 @@ impl Partial {
         let nodes = header
             .nodes
             .iter()
-            .zip(data.chunks_exact(node_bytes as usize))
+            .zip(data.chunks_exact(node_bytes))
             .map(|(&id, chunk)| {
                 let (sum, sum_sq) = chunk.split_at(chunk.len() / 2);
                 Node { id, sums: Sums { sum: floats(sum), sum_sq: floats(sum_sq) } }
@@ -213,6 +201,45 @@ impl Partial {
             .collect();
         Ok(Self { header, nodes })
     }
+}
+
+/// The header from a file's first bytes (`bytes`, at least through the header, else it is
+/// truncated) and the file's length `len`, checked against each other; and where the sums start.
+fn parse_header(bytes: &[u8], len: u64) -> Result<(Header, usize)> {
+    if bytes.len() < 16 || &bytes[..8] != MAGIC {
+        bail!("not a kdtrace partial render (no {:?} at its start)", std::str::from_utf8(MAGIC).unwrap_or(""));
+    }
+    let word = |at: usize| u32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]]);
+    let version = word(8);
+    if version != VERSION {
+        bail!("partial render format version {version}; this kdtrace reads version {VERSION}");
+    }
+    let header_len = word(12) as usize;
+    let Some(header_bytes) = bytes.get(16..16 + header_len) else {
+        bail!("truncated: the header needs {header_len} bytes, the file has {} after its start", len - 16);
+    };
+    let header: Header = serde_json::from_slice(header_bytes).context("the header is not valid")?;
+    let s = &header.settings;
+    if s.block_samples != BLOCK_SAMPLES {
+        bail!("rendered in blocks of {} samples; this kdtrace folds blocks of {BLOCK_SAMPLES}", s.block_samples);
+    }
+    let pixels = s.width as u64 * s.height as u64;
+    if pixels == 0 || s.width > crate::settings::MAX_SIDE || s.height > crate::settings::MAX_SIDE {
+        bail!("image size {}x{} is not one kdtrace renders", s.width, s.height);
+    }
+    check_nodes(&header)?;
+    let data = len - 16 - header_len as u64;
+    let want = pixels * 2 * 16 * header.nodes.len() as u64;
+    if data != want {
+        bail!(
+            "{data} bytes of sums for {} node(s) of {}x{} pixels, which need {want}{}",
+            header.nodes.len(),
+            s.width,
+            s.height,
+            if data < want { " (truncated)" } else { "" }
+        );
+    }
+    Ok((header, 16 + header_len))
 }
 
 /// The header's nodes: valid, in order, covering its samples with no gap or overlap.

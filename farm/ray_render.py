@@ -20,7 +20,8 @@ Failures: a task whose worker process or node dies, or whose kdtrace is killed b
 run again by Ray (--max-retries) on a node that is alive; the driver prints each start, each
 retry and each finished range, and with --json one JSON report on stdout. A range whose kdtrace
 exits with an error (bad scene, bad flags) is not retried: the same command would fail again;
-the driver stops with kdtrace's message.
+the driver stops with kdtrace's message. If the driver itself dies, run the same command again
+with --parts-dir DIR --resume: the parts already in DIR are kept, the others rendered.
 
 Test hook (documented, used by tests/farm.rs only): KDTRACE_FARM_TEST_DELAY_S=SEC in the
 driver's environment makes every task wait SEC seconds after reporting its start and before
@@ -72,6 +73,9 @@ def parse_args(argv):
     p.add_argument("--gpus-per-task", type=float, default=0, help="GPUs Ray reserves per task, for --device gpu (default 0)")
     p.add_argument("--max-retries", type=int, default=3, help="Ray re-runs of a range whose worker or node died (default 3)")
     p.add_argument("--parts-dir", help="keep the partial files here (default: a temporary folder, removed)")
+    p.add_argument("--resume", action="store_true",
+                   help="with --parts-dir: keep the parts already there from an earlier run of the same command, "
+                        "render only the missing ones")
     p.add_argument("--json", action="store_true", help="print one JSON report on stdout at the end")
     p.add_argument("--verbose", action="store_true", help="show Ray's own log lines")
     a = p.parse_args(argv)
@@ -79,6 +83,8 @@ def parse_args(argv):
         a.ranges = sample_ranges(a.spp, a.tasks)
     except ValueError as e:
         p.error(str(e))
+    if a.resume and not a.parts_dir:
+        p.error("--resume needs --parts-dir, the folder of the earlier run's parts")
     if a.cpus_per_task < 1 or a.max_retries < 0:
         p.error("--cpus-per-task must be at least 1 and --max-retries at least 0")
     for what, path in [("scene", a.scene), ("kdtrace binary", a.kdtrace)]:
@@ -262,9 +268,18 @@ def run_ranges(a, ray, parts_dir):
         scheduling_strategy=NodeAffinitySchedulingStrategy(here, soft=False)).remote()
     task = ray.remote(render_range).options(num_cpus=a.cpus_per_task, num_gpus=a.gpus_per_task,
                                             max_retries=a.max_retries, retry_exceptions=[InterruptedError])
-    pending = {task.remote(i, s, e, job, ledger): i for i, (s, e) in enumerate(a.ranges)}
     progress = Progress(a.ranges)
     paths = [os.path.join(parts_dir, f"part-{i:05d}.kdp") for i in range(a.tasks)]
+    todo = list(range(a.tasks))
+    if a.resume:
+        # A part is only ever there complete (written under another name, then renamed); one
+        # from a different render or split is refused by the merge, naming it.
+        todo = [i for i in todo if not os.path.isfile(paths[i])]
+        for i in sorted(set(range(a.tasks)) - set(todo)):
+            progress.ranges[i]["kept"] = True
+            progress.done += 1
+            log(f"range {progress.ranges[i]['samples']}: part kept from {paths[i]}")
+    pending = {task.remote(i, *a.ranges[i], job, ledger): i for i in todo}
     while pending:
         ready, _ = ray.wait(list(pending), num_returns=1, timeout=0.5)
         progress.started(ray.get(ledger.since.remote(progress.seen)))
@@ -277,8 +292,10 @@ def run_ranges(a, ray, parts_dir):
             except ray.exceptions.RayError as e:
                 sys.exit(f"ray_render: range {samples} was lost after {a.max_retries} retries: "
                          f"{type(e).__name__}: {e}")
-            with open(paths[res["index"]], "wb") as f:
+            tmp = paths[res["index"]] + ".incomplete"
+            with open(tmp, "wb") as f:
                 f.write(res["data"])
+            os.replace(tmp, paths[res["index"]])
             progress.finished(res)
     progress.started(ray.get(ledger.since.remote(progress.seen)))
     return progress, paths

@@ -4,7 +4,7 @@
 # the CPU) so the GPU path runs even where no GPU is attached. With --tests, also what the test
 # suite needs beyond that: Debian's chromium, Node.js and npm (the web UI's browser test drives
 # chromium through npm's playwright-core, installed into tests/web), and iproute2 (the server
-# tests run in network namespaces of their own). Idempotent.
+# tests run in network namespaces of their own), and farm/.venv for the farm tests. Idempotent.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 tests=0
@@ -26,6 +26,8 @@ if [ $tests = 1 ]; then
   command -v npm >/dev/null 2>&1 || need_apt+=(npm)
   command -v ip >/dev/null 2>&1 || need_apt+=(iproute2)
   command -v unshare >/dev/null 2>&1 || need_apt+=(util-linux)
+  # farm/setup.sh makes a venv (python3 -m venv).
+  python3 -c 'import venv, ensurepip' >/dev/null 2>&1 || need_apt+=(python3 python3-venv)
 fi
 if [ ${#need_apt[@]} -gt 0 ]; then
   echo "setup: installing ${need_apt[*]}" >&2
@@ -46,6 +48,12 @@ for c in "${components[@]}"; do
     rustup component add --toolchain "$toolchain" "$c"
   fi
 done
+
+# The farm tests (tests/farm.rs): farm/.venv with the pinned Ray and kubernetes-validate. Bounded;
+# where PyPI cannot be reached those tests print why and skip, so this does not fail the setup.
+if [ $tests = 1 ] && ! timeout 900 farm/setup.sh --tests; then
+  echo "setup: farm/setup.sh --tests failed: tests/farm.rs's Ray and Kubernetes tests will skip" >&2
+fi
 
 if [ $tests = 1 ] && [ ! -d tests/web/node_modules/playwright-core ]; then
   echo "setup: installing playwright-core into tests/web" >&2

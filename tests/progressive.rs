@@ -1,5 +1,6 @@
-//! Progressive renders (`render::progressive`): passes of any split add the same samples in the
-//! same order as one render, so the sums equal `render`'s bit for bit, on the CPU and on lavapipe
+//! Progressive renders (`render::progressive`): passes of any split, across sample blocks or
+//! inside them, add the same samples in the same order as one render (`render::blocks`), so the
+//! sums equal `render`'s bit for bit, on the CPU and on lavapipe
 //! (opened by name; missing lavapipe is a failure), with either GPU dispatch; `image()` between
 //! passes holds the samples added so far.
 #[path = "common/paths.rs"]
@@ -15,10 +16,11 @@ use shared::glam::DVec3;
 
 fn no_progress(_: u64, _: u64) {}
 
-const SPP: u32 = 8;
-/// Splits of `SPP` samples into passes: the second has passes longer than lavapipe's samples
-/// per dispatch (4), which then take several dispatches.
-const SPLITS: [&[u32]; 3] = [&[1, 2, 5], &[3, 3, 2], &[8]];
+const SPP: u32 = 20;
+/// Splits of `SPP` samples into passes: passes longer than lavapipe's samples per dispatch (4),
+/// which then take several dispatches, passes across the 8-sample blocks (`render::blocks`) and
+/// ending inside one, and a last block that is short.
+const SPLITS: [&[u32]; 3] = [&[1, 2, 5, 12], &[3, 6, 9, 2], &[20]];
 
 fn scene() -> Compiled {
     load(&mesh("CornellBox-Sphere/CornellBox-Sphere.obj"), BuildSettings::default()).unwrap().compiled
@@ -74,7 +76,7 @@ fn cpu_passes_sum_as_one_render() {
         // Rendering on past `s.spp` is allowed: the settings' spp only sizes `render`.
         p.pass(SPP, 2).unwrap();
         assert_eq!(p.image().unwrap().spp, SPP + 2);
-        assert_eq!(p.into_image().spp, SPP + 2);
+        assert_eq!(p.into_image().unwrap().spp, SPP + 2);
     }
 }
 

@@ -1,10 +1,11 @@
-//! The `kdtrace` command line: `render`, `verify`, `tree`, `rays`, `export`, `compile`, `compare`,
+//! The `kdtrace` command line: `render`, `merge`, `verify`, `tree`, `rays`, `export`, `compile`, `compare`,
 //! `pixel`, `serve`, `adapters`. One file per command; each prints text or, with `--json`, one
 //! line serialised from its report struct. Input errors exit with code 2, a failed check with 1.
 mod args;
 mod compare;
 mod compile;
 mod export;
+mod merge;
 mod pixel;
 mod rays;
 mod render;
@@ -37,6 +38,9 @@ enum Command {
     Render(render::RenderArgs),
     /// Render on the CPU and the GPU with the same seed and report how well they agree.
     Verify(verify::VerifyArgs),
+    /// Add partial renders (`render --samples A..B --partial OUT.kdp`) into one image, equal
+    /// bit for bit to one render of all their samples.
+    Merge(merge::MergeArgs),
     /// Write a scene (.obj or .toml) as a TOML scene file stating every render setting.
     Export(export::ExportArgs),
     /// Parse a scene, build its k-d tree and write both to one binary .kdc file.
@@ -65,6 +69,7 @@ pub fn run() -> ExitCode {
         Command::Tree(a) => tree::run(a),
         Command::Rays(a) => rays::run(a),
         Command::Export(a) => export::run(a),
+        Command::Merge(a) => merge::run(a),
         Command::Compile(a) => compile::run(a),
         Command::Compare(a) => compare::run(a),
         Command::Pixel(a) => pixel::run(a),
@@ -149,7 +154,7 @@ pub(crate) fn load(path: &Path, build: kdbuild::BuildSettings, camera: Option<&s
     Ok(loaded)
 }
 
-fn progress_bar(quiet: bool, label: &str) -> ProgressBar {
+pub(crate) fn progress_bar(quiet: bool, label: &str) -> ProgressBar {
     if quiet {
         return ProgressBar::hidden();
     }
@@ -169,6 +174,8 @@ struct DeviceRun {
     /// The CPU's thread count or the adapter's name.
     adapter: String,
     render_s: f64,
+    /// With several devices, what each rendered.
+    shares: Option<Vec<crate::render::multi::Share>>,
 }
 
 fn run_device(device: Device, c: &Compiled, s: &RenderSettings, a: &ImageArgs) -> Result<DeviceRun> {
@@ -183,14 +190,14 @@ fn run_device(device: Device, c: &Compiled, s: &RenderSettings, a: &ImageArgs) -
             let t = Instant::now();
             let image = crate::render::cpu::render(c, s, &report)?;
             let adapter = format!("cpu ({} threads)", rayon::current_num_threads());
-            DeviceRun { image, adapter, render_s: t.elapsed().as_secs_f64() }
+            DeviceRun { image, adapter, render_s: t.elapsed().as_secs_f64(), shares: None }
         }
         Device::Gpu => {
             let g = crate::render::gpu::Gpu::open(a.adapter.as_deref())?;
             g.prepare(c, s)?;
             let t = Instant::now();
             let image = g.render(c, s, &report)?;
-            DeviceRun { image, adapter: g.adapter.name.clone(), render_s: t.elapsed().as_secs_f64() }
+            DeviceRun { image, adapter: g.adapter.name.clone(), render_s: t.elapsed().as_secs_f64(), shares: None }
         }
     };
     bar.finish_and_clear();

@@ -1,28 +1,91 @@
-//! `kdtrace render`: one image on one device.
+//! `kdtrace render`: one image, or a partial render for `merge` (`--samples A..B --partial`), on
+//! one device or several at once (`--device all`, `render::multi`).
 use super::args::{Device, ImageArgs};
-use super::{load, print_json, run_device, settings};
+use super::{load, print_json, run_device, settings, DeviceRun};
 use crate::files;
 use crate::image::io;
+use crate::kdbuild::BuildSettings;
+use crate::render::blocks::{Fold, Node};
 use crate::render::features::{self, Features};
+use crate::render::multi::{self, Share, Unit};
+use crate::render::partial::{self, Header, ImageSettings, Partial};
+use crate::render::progressive::Progressive;
+use crate::render::{Compiled, Rendered};
+use crate::settings::RenderSettings;
 use crate::settings::{Adaptive, Aov, Dispatch, SamplerKind, Traversal};
-use anyhow::{bail, Result};
+use anyhow::{anyhow, bail, Result};
 use clap::Args;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::time::Instant;
 
 #[derive(Args)]
 pub struct RenderArgs {
     scene: PathBuf,
-    #[arg(long)]
-    out: PathBuf,
-    #[arg(long, value_enum, default_value_t = Device::Cpu)]
-    device: Device,
+    /// The image: PNG (sRGB) or EXR (linear).
+    #[arg(long, required_unless_present = "partial")]
+    out: Option<PathBuf>,
+    /// cpu, gpu (the adapter `--adapter` names, else the first), all (the CPU and every adapter
+    /// at once), or a list such as cpu,gpu:0,gpu:1 (N from `kdtrace adapters`). Several devices
+    /// share blocks of samples by their speed; the image is a single device's bit for bit where
+    /// the devices compute alike (the CPU and lavapipe do).
+    #[arg(long, default_value = "cpu", value_name = "cpu|gpu|all|LIST")]
+    device: String,
     /// Also write each pixel's per-sample variance (linear EXR), for `compare --variance`.
-    #[arg(long, value_name = "FILE.exr")]
+    #[arg(long, value_name = "FILE.exr", conflicts_with = "partial")]
     variance: Option<PathBuf>,
+    /// With --partial: render samples A (inclusive) to B (exclusive) of every pixel, A a multiple
+    /// of 8 (B too, unless the part is the render's last); `--spp` is then not used [0..spp].
+    #[arg(long, value_name = "A..B", value_parser = parse_samples, requires = "partial")]
+    samples: Option<[u32; 2]>,
+    /// Write a partial render (the samples' sums, the scene's hash and the image's settings) for
+    /// `kdtrace merge` instead of an image.
+    #[arg(long, value_name = "OUT.kdp", conflicts_with = "out")]
+    partial: Option<PathBuf>,
     #[command(flatten)]
     image: ImageArgs,
+}
+
+/// `--samples A..B`.
+fn parse_samples(v: &str) -> Result<[u32; 2], String> {
+    let (a, b) = v.split_once("..").ok_or_else(|| format!("{v:?} is not a range A..B"))?;
+    let n = |x: &str| x.trim().parse::<u32>().map_err(|_| format!("{x:?} in {v:?} is not a sample number"));
+    Ok([n(a)?, n(b)?])
+}
+
+/// `--device`: one device, or several at once.
+enum Devices {
+    One(Device),
+    Many(Vec<Unit>),
+}
+
+impl Devices {
+    fn parse(spec: &str) -> Result<Self> {
+        Ok(match spec {
+            "cpu" => Devices::One(Device::Cpu),
+            "gpu" => Devices::One(Device::Gpu),
+            _ => Devices::Many(Unit::parse_list(spec)?),
+        })
+    }
+
+    /// The k-d tree's build settings: the device's own for one device, the CPU's for several
+    /// (every device then traverses the same tree: the CPU's image bit for bit on lavapipe).
+    fn build_settings(&self, partial: bool) -> BuildSettings {
+        match self {
+            // Parts from any device merge: they all build the CPU's tree.
+            Devices::One(_) if partial => BuildSettings::default(),
+            Devices::One(d) => d.build_settings(),
+            Devices::Many(_) => BuildSettings::default(),
+        }
+    }
+
+    fn any_gpu(&self) -> bool {
+        match self {
+            Devices::One(d) => *d == Device::Gpu,
+            Devices::Many(units) => units.iter().any(|u| *u != Unit::Cpu),
+        }
+    }
 }
 
 /// `render --json`.
@@ -30,7 +93,11 @@ pub struct RenderArgs {
 struct RenderReport<'a> {
     scene: &'a PathBuf,
     out: &'a PathBuf,
-    device: Device,
+    /// `--device` as given (cpu, gpu, all or a list).
+    device: &'a str,
+    /// With several devices, what each rendered.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    devices: &'a Option<Vec<Share>>,
     adapter: &'a str,
     triangles: usize,
     lights: usize,
@@ -74,26 +141,108 @@ struct RenderReport<'a> {
 }
 
 pub fn run(r: RenderArgs) -> Result<ExitCode> {
-    io::check_output_path(&r.out)?;
+    let devices = Devices::parse(&r.device)?;
+    if let Some(out) = &r.out {
+        io::check_output_path(out)?;
+    }
     if let Some(v) = &r.variance {
         if !io::is_exr(v) {
             bail!("{}: the variance image is linear: write it as .exr", v.display());
         }
     }
+    if let Some([a, b]) = r.samples {
+        partial::check_range(a, b)?;
+    }
     // Every output is checked before the scene is even read: a render is never lost to a
     // missing folder or a clash found at the end.
-    let outputs: Vec<&Path> = std::iter::once(r.out.as_path()).chain(r.variance.as_deref()).collect();
+    let outputs: Vec<&Path> = r.out.iter().chain(&r.partial).chain(&r.variance).map(PathBuf::as_path).collect();
     files::check_outputs(&outputs, &[&r.scene])?;
-    let mut loaded = load(&r.scene, r.device.build_settings(), r.image.camera.as_deref())?;
-    let s = settings(&r.image, &mut loaded, &r.scene)?;
+    let mut loaded = load(&r.scene, devices.build_settings(r.partial.is_some()), r.image.camera.as_deref())?;
+    let mut s = settings(&r.image, &mut loaded, &r.scene)?;
+    let several = matches!(devices, Devices::Many(_));
+    if r.partial.is_some() || several {
+        let what = if several { "--device with several devices" } else { "--partial" };
+        if s.adaptive.is_some() {
+            bail!("{what} renders the same samples in every pixel: --adaptive does not apply");
+        }
+        if r.image.scene.time_limit_s.is_some() {
+            bail!("{what} renders exactly the samples asked for: --time-limit does not apply");
+        }
+        if s.time_limit_s.take().is_some() {
+            eprintln!("warning: {what} renders exactly the samples asked for: the scene file's time limit is ignored");
+        }
+    }
+    if let Some([_, b]) = r.samples {
+        s.spp = b;
+        s.check()?;
+    }
+    crate::render::memory::check(s.width, s.height, devices.any_gpu())?;
     let c = &loaded.compiled;
-    let run = run_device(r.device, c, &s, &r.image)?;
+    let range = r.samples.unwrap_or([0, s.spp]);
+    let run = match (&devices, &r.partial) {
+        (Devices::One(d), None) => run_device(*d, c, &s, &r.image)?,
+        (_, partial) => {
+            let (nodes, primary, adapter, shares, render_s) = match &devices {
+                Devices::One(d) => {
+                    let (nodes, adapter, render_s) = render_part(*d, c, &s, &r.image, range)?;
+                    (nodes, None, adapter, None, render_s)
+                }
+                Devices::Many(units) => {
+                    let bar = super::progress_bar(r.image.json, "devices");
+                    let total = (range[1] - range[0]) as u64;
+                    let shown = |shares: &[Share]| {
+                        bar.set_length(total);
+                        bar.set_position(shares.iter().map(|s| s.samples as u64).sum());
+                        let parts: Vec<String> =
+                            shares.iter().map(|s| format!("{} {:.0}%", s.device, 100.0 * s.share)).collect();
+                        bar.set_message(parts.join(" · "));
+                    };
+                    let out = multi::render(c, &s, units, r.image.adapter.as_deref(), range, &shown)?;
+                    bar.finish_and_clear();
+                    let adapter = out.shares.iter().map(|s| s.device.as_str()).collect::<Vec<_>>().join(" + ");
+                    (out.fold.into_nodes(), out.primary, adapter, Some(out.shares), out.render_s)
+                }
+            };
+            if let Some(path) = partial {
+                let part = Partial {
+                    header: Header {
+                        scene: r.scene.display().to_string(),
+                        scene_hash: partial::scene_hash(c),
+                        settings: ImageSettings::of(&s),
+                        samples: range,
+                        device: adapter.clone(),
+                        nodes: nodes.iter().map(|n| n.id).collect(),
+                    },
+                    nodes,
+                };
+                part.write(path)?;
+                return report_partial(&r, path, range, &adapter, render_s, shares, &s);
+            }
+            let mut fold = Fold::new(s.width as usize * s.height as usize);
+            for n in nodes {
+                fold.insert(n)?;
+            }
+            let (sums, spp) = fold.total(None)?.ok_or_else(|| anyhow!("no sample was rendered"))?;
+            let image = Rendered {
+                width: s.width,
+                height: s.height,
+                spp,
+                sum: sums.sum,
+                sum_sq: sums.sum_sq,
+                primary: primary.unwrap_or_else(|| vec![shared::layout::NO_HIT; fold.pixels()]),
+                traversal: s.traversal,
+                counts: None,
+            };
+            DeviceRun { image, adapter, render_s, shares }
+        }
+    };
+    let out = r.out.as_ref().ok_or_else(|| anyhow!("--out is missing"))?;
     let img = &run.image;
     let pixels = img.mean();
-    if io::is_exr(&r.out) {
-        io::write_image(&r.out, s.width, s.height, &pixels)?;
+    if io::is_exr(out) {
+        io::write_image(out, s.width, s.height, &pixels)?;
     } else {
-        io::write_image(&r.out, s.width, s.height, &io::for_display(s.aov, &pixels))?;
+        io::write_image(out, s.width, s.height, &io::for_display(s.aov, &pixels))?;
     }
     if let Some(v) = &r.variance {
         io::write_image(v, s.width, s.height, &img.variance())?;
@@ -106,8 +255,9 @@ pub fn run(r: RenderArgs) -> Result<ExitCode> {
         };
         print_json(&RenderReport {
             scene: &r.scene,
-            out: &r.out,
-            device: r.device,
+            out,
+            device: &r.device,
+            devices: &run.shares,
             adapter: &run.adapter,
             triangles: c.scene.triangles.len(),
             lights: c.scene.lights.len(),
@@ -138,7 +288,7 @@ pub fn run(r: RenderArgs) -> Result<ExitCode> {
             features: {
                 let mut f = features::analyse(c, &s);
                 // The CPU compiles one variant per set of the non-material bits and material mode.
-                if r.device == Device::Cpu && s.specialize {
+                if matches!(devices, Devices::One(Device::Cpu)) && s.specialize {
                     f.variant_bits = crate::render::cpu::cpu_variant_bits(f.bits);
                 }
                 f
@@ -151,7 +301,7 @@ pub fn run(r: RenderArgs) -> Result<ExitCode> {
         eprintln!(
             "{}: {} triangles, {}x{} at {} spp on {}: load {:.3} s, build {:.3} s, prepare {:.3} s, render {:.3} s \
              ({:.2} Msamples/s)",
-            r.out.display(),
+            out.display(),
             c.scene.triangles.len(),
             s.width,
             s.height,
@@ -162,6 +312,92 @@ pub fn run(r: RenderArgs) -> Result<ExitCode> {
             loaded.prepare_s,
             run.render_s,
             samples / run.render_s / 1e6
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Renders samples `range` on one device, a block per pass with a progress bar: the fold's
+/// nodes, the device's name and the seconds it rendered (after opening it and compiling).
+fn render_part(
+    device: Device,
+    c: &Compiled,
+    s: &RenderSettings,
+    a: &ImageArgs,
+    range: [u32; 2],
+) -> Result<(Vec<Node>, String, f64)> {
+    let gpu = match device {
+        Device::Cpu => None,
+        Device::Gpu => Some(crate::render::gpu::Gpu::open(a.adapter.as_deref())?),
+    };
+    let mut p: Box<dyn Progressive + '_> = match &gpu {
+        None => Box::new(crate::render::cpu::progressive(c, s)?),
+        Some(g) => Box::new(g.progressive(c, s)?),
+    };
+    let t = Instant::now();
+    let bar = super::progress_bar(a.json, device.name());
+    bar.set_length((range[1] - range[0]) as u64);
+    p.start_at(range[0])?;
+    let mut at = range[0];
+    while at < range[1] {
+        let n = (range[1] - at).min(crate::render::blocks::BLOCK_SAMPLES);
+        p.pass(at, n)?;
+        at += n;
+        bar.set_position((at - range[0]) as u64);
+    }
+    bar.finish_and_clear();
+    let render_s = t.elapsed().as_secs_f64();
+    Ok((p.nodes()?, p.device(), render_s))
+}
+
+/// `render --partial --json`.
+#[derive(Serialize)]
+struct PartialReport<'a> {
+    scene: &'a PathBuf,
+    partial: &'a PathBuf,
+    device: &'a str,
+    adapter: &'a str,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    devices: Option<Vec<Share>>,
+    samples: [u32; 2],
+    width: u32,
+    height: u32,
+    render_s: f64,
+    samples_per_s: f64,
+}
+
+fn report_partial(
+    r: &RenderArgs,
+    path: &PathBuf,
+    range: [u32; 2],
+    adapter: &str,
+    render_s: f64,
+    shares: Option<Vec<Share>>,
+    s: &RenderSettings,
+) -> Result<ExitCode> {
+    let samples = s.width as f64 * s.height as f64 * (range[1] - range[0]) as f64;
+    if r.image.json {
+        print_json(&PartialReport {
+            scene: &r.scene,
+            partial: path,
+            device: &r.device,
+            adapter,
+            devices: shares,
+            samples: range,
+            width: s.width,
+            height: s.height,
+            render_s,
+            samples_per_s: samples / render_s.max(1e-9),
+        })?;
+    } else {
+        eprintln!(
+            "{}: samples {}..{} of {}x{} on {adapter}: render {render_s:.3} s ({:.2} Msamples/s)",
+            path.display(),
+            range[0],
+            range[1],
+            s.width,
+            s.height,
+            samples / render_s.max(1e-9) / 1e6
         );
     }
     Ok(ExitCode::SUCCESS)

@@ -1,7 +1,8 @@
 //! The CPU reference renderer: rayon over rows, each pixel through `shared::integrator`, the same
 //! function the GPU kernel runs, monomorphised for the scene's feature set (`variant`).
 //! Non-finite samples are zeroed and logged with their pixel.
-use crate::render::progressive::{check_pass, Progressive};
+use crate::render::blocks::{Node, Sums};
+use crate::render::progressive::{Blocks, Progressive, RunningSums};
 use crate::render::{adaptive, Compiled, Progress, Rendered};
 use crate::settings::RenderSettings;
 use anyhow::{bail, Result};
@@ -133,8 +134,11 @@ pub fn render(c: &Compiled, s: &RenderSettings, progress: Progress) -> Result<Re
     while start < s.spp {
         count = count.min(s.spp - start);
         let pass_clock = Instant::now();
-        let k = w as u64 * count as u64;
-        passes.pass_rows(start, count, &|| progress(done.fetch_add(k, Ordering::Relaxed) + k, total))?;
+        let row = |n: u32| {
+            let k = w as u64 * n as u64;
+            progress(done.fetch_add(k, Ordering::Relaxed) + k, total)
+        };
+        passes.pass_rows(start, count, &row)?;
         start += count;
         if let Some(limit) = s.time_limit_s {
             let elapsed = clock.elapsed().as_secs_f64();
@@ -147,33 +151,20 @@ pub fn render(c: &Compiled, s: &RenderSettings, progress: Progress) -> Result<Re
             count = (fit as u32).max(1);
         }
     }
-    Ok(passes.into_image())
+    passes.into_image()
 }
 
 /// Starts a progressive render of `c` with `s` on the CPU (`progressive::Progressive`): the
 /// sums allocated, the integrator's variant for the scene chosen. `s.spp`, `s.time_limit_s`
 /// and `s.adaptive` are the caller's to apply (adaptive settings are refused).
 pub fn progressive<'a>(c: &'a Compiled, s: &RenderSettings) -> Result<CpuProgressive<'a>> {
-    s.check()?;
-    if s.adaptive.is_some() {
-        bail!("a progressive render adds the same samples to every pixel: adaptive sampling does not apply");
-    }
-    let s = RenderSettings { traversal: s.traversal.resolve(true), ..*s };
-    let n = s.width as usize * s.height as usize;
-    Ok(CpuProgressive {
-        c,
-        render_samples: variant(crate::render::features::variant_bits(c, &s)),
-        s,
-        sum: vec![Vec4::ZERO; n],
-        sum_sq: vec![Vec4::ZERO; n],
-        primary: vec![NO_HIT; n],
-        spp: 0,
-    })
+    let sums = CpuSums::new(c, s)?;
+    let blocks = Blocks::new(sums.sum.len());
+    Ok(CpuProgressive { sums, blocks })
 }
 
-/// A render in progress on the CPU (`progressive`): the sums of every pixel, passes of rayon
-/// over rows.
-pub struct CpuProgressive<'a> {
+/// The CPU's running sums of one block (`progressive::RunningSums`), added by rayon over rows.
+pub(crate) struct CpuSums<'a> {
     c: &'a Compiled,
     /// The settings, the traversal resolved for the CPU.
     s: RenderSettings,
@@ -181,16 +172,29 @@ pub struct CpuProgressive<'a> {
     sum: Vec<Vec4>,
     sum_sq: Vec<Vec4>,
     primary: Vec<u32>,
-    spp: u32,
 }
 
-impl CpuProgressive<'_> {
-    /// `pass`, calling `row_done` after each row (from rayon's threads).
-    pub fn pass_rows(&mut self, start: u32, count: u32, row_done: &(dyn Fn() + Sync)) -> Result<()> {
-        check_pass(self.spp, start, count)?;
-        if count == 0 {
-            return Ok(());
+impl<'a> CpuSums<'a> {
+    pub(crate) fn new(c: &'a Compiled, s: &RenderSettings) -> Result<Self> {
+        s.check()?;
+        if s.adaptive.is_some() {
+            bail!("a progressive render adds the same samples to every pixel: adaptive sampling does not apply");
         }
+        let s = RenderSettings { traversal: s.traversal.resolve(true), ..*s };
+        let n = s.width as usize * s.height as usize;
+        Ok(Self {
+            c,
+            render_samples: variant(crate::render::features::variant_bits(c, &s)),
+            s,
+            sum: vec![Vec4::ZERO; n],
+            sum_sq: vec![Vec4::ZERO; n],
+            primary: vec![NO_HIT; n],
+        })
+    }
+
+    /// Adds samples `[start, start + count)` to every pixel's running sums, calling `row_done`
+    /// with `count` after each row (from rayon's threads).
+    fn add_rows(&mut self, start: u32, count: u32, row_done: &(dyn Fn(u32) + Sync)) -> Result<()> {
         let (c, w, render_samples) = (self.c, self.s.width as usize, self.render_samples);
         let params = c.params(&self.s, start, count)?;
         let scene = c.view(&params);
@@ -212,51 +216,118 @@ impl CpuProgressive<'_> {
                         );
                     }
                 }
-                row_done();
+                row_done(count);
             });
-        self.spp += count;
         Ok(())
     }
 
-    /// The image accumulated so far, without copying the sums.
-    pub fn into_image(self) -> Rendered {
+    fn image(&self, spp: u32, sums: Sums) -> Rendered {
         Rendered {
             width: self.s.width,
             height: self.s.height,
-            spp: self.spp,
-            sum: self.sum,
-            sum_sq: self.sum_sq,
-            primary: self.primary,
+            spp,
+            sum: sums.sum,
+            sum_sq: sums.sum_sq,
+            primary: self.primary.clone(),
             traversal: self.s.traversal,
             counts: None,
         }
     }
 }
 
+/// `CpuSums` with a callback after each row, as `RunningSums`.
+struct WithRows<'x, 'a>(&'x mut CpuSums<'a>, &'x (dyn Fn(u32) + Sync));
+
+impl RunningSums for WithRows<'_, '_> {
+    fn zero(&mut self) -> Result<()> {
+        self.0.sum.fill(Vec4::ZERO);
+        self.0.sum_sq.fill(Vec4::ZERO);
+        Ok(())
+    }
+
+    fn add(&mut self, start: u32, count: u32) -> Result<()> {
+        self.0.add_rows(start, count, self.1)
+    }
+
+    fn read(&mut self) -> Result<Sums> {
+        Ok(Sums { sum: self.0.sum.clone(), sum_sq: self.0.sum_sq.clone() })
+    }
+
+    fn primary(&mut self) -> Result<Vec<u32>> {
+        self.0.primary()
+    }
+
+    fn name(&self) -> String {
+        self.0.name()
+    }
+}
+
+impl RunningSums for CpuSums<'_> {
+    fn zero(&mut self) -> Result<()> {
+        WithRows(self, &|_| {}).zero()
+    }
+
+    fn add(&mut self, start: u32, count: u32) -> Result<()> {
+        self.add_rows(start, count, &|_| {})
+    }
+
+    fn read(&mut self) -> Result<Sums> {
+        WithRows(self, &|_| {}).read()
+    }
+
+    fn primary(&mut self) -> Result<Vec<u32>> {
+        Ok(self.primary.clone())
+    }
+
+    fn name(&self) -> String {
+        format!("cpu ({} threads)", rayon::current_num_threads())
+    }
+}
+
+/// A render in progress on the CPU (`progressive`): the running block's sums, passes of rayon
+/// over rows, and the fold of the completed blocks.
+pub struct CpuProgressive<'a> {
+    sums: CpuSums<'a>,
+    blocks: Blocks,
+}
+
+impl CpuProgressive<'_> {
+    /// `pass`, calling `row_done` after each row with the samples it added to the row's pixels
+    /// (from rayon's threads; a pass across blocks visits each row once per block).
+    pub fn pass_rows(&mut self, start: u32, count: u32, row_done: &(dyn Fn(u32) + Sync)) -> Result<()> {
+        self.blocks.pass(&mut WithRows(&mut self.sums, row_done), start, count)
+    }
+
+    /// The image accumulated so far.
+    pub fn into_image(mut self) -> Result<Rendered> {
+        self.image()
+    }
+}
+
 impl Progressive for CpuProgressive<'_> {
     fn pass(&mut self, start: u32, count: u32) -> Result<()> {
-        self.pass_rows(start, count, &|| {})
+        self.pass_rows(start, count, &|_| {})
     }
 
     fn image(&mut self) -> Result<Rendered> {
-        Ok(Rendered {
-            width: self.s.width,
-            height: self.s.height,
-            spp: self.spp,
-            sum: self.sum.clone(),
-            sum_sq: self.sum_sq.clone(),
-            primary: self.primary.clone(),
-            traversal: self.s.traversal,
-            counts: None,
-        })
+        let sums = self.blocks.total(&mut self.sums)?;
+        Ok(self.sums.image(self.blocks.spp(), sums))
     }
 
     fn spp(&self) -> u32 {
-        self.spp
+        self.blocks.spp()
     }
 
     fn device(&self) -> String {
-        format!("cpu ({} threads)", rayon::current_num_threads())
+        self.sums.name()
+    }
+
+    fn start_at(&mut self, start: u32) -> Result<()> {
+        self.blocks.start_at(start)
+    }
+
+    fn nodes(&mut self) -> Result<Vec<Node>> {
+        self.blocks.nodes(&mut self.sums)
     }
 }
 

@@ -2,8 +2,10 @@
 //!
 //! Each pass dispatches one invocation per pixel that adds a few samples to the pixel's running
 //! sum in a storage buffer, so progress can be reported between passes and no single dispatch
-//! runs long enough to trip a driver watchdog. The sum is read back once at the end.
-use crate::render::progressive::{check_pass, Progressive};
+//! runs long enough to trip a driver watchdog. The sums hold one block of samples at a time
+//! (`blocks`): cleared at a block's start, read back at its end into the host's fold.
+use crate::render::blocks::{Node, Sums, BLOCK_SAMPLES};
+use crate::render::progressive::{Blocks, Progressive, RunningSums};
 use crate::render::{Compiled, Progress, Rendered};
 use crate::settings::{Dispatch, RenderSettings};
 use anyhow::{anyhow, bail, Context, Result};
@@ -138,6 +140,19 @@ impl Gpu {
                 )
             })?,
         };
+        Self::from_adapter(adapter)
+    }
+
+    /// Opens adapter `i` of `adapters()`'s list.
+    pub fn open_index(i: usize) -> Result<Self> {
+        let all = pollster::block_on(instance().enumerate_adapters(wgpu::Backends::PRIMARY));
+        let n = all.len();
+        let adapter =
+            all.into_iter().nth(i).ok_or_else(|| anyhow!("no GPU adapter {i}: there are {n} (`kdtrace adapters`)"))?;
+        Self::from_adapter(adapter)
+    }
+
+    fn from_adapter(adapter: wgpu::Adapter) -> Result<Self> {
         let info = adapter.get_info();
         let limits = adapter.limits();
         let storage = binding::COUNT - 1;
@@ -406,13 +421,13 @@ impl Gpu {
             });
         }
         let mut passes = self.progressive(c, s)?;
-        let pixels = passes.buffers.pixels;
+        let pixels = passes.sums.buffers.pixels;
         let total = pixels * s.spp as u64;
         let clock = std::time::Instant::now();
         let mut start = 0;
         while start < s.spp {
             // One dispatch a pass, so progress and the time limit are seen after each.
-            let count = passes.per_dispatch.min(s.spp - start);
+            let count = passes.per_dispatch().min(s.spp - start);
             passes.pass(start, count)?;
             start += count;
             progress(pixels * start as u64, total);
@@ -430,6 +445,13 @@ impl Gpu {
     /// dispatch (a pass takes as many dispatches as it needs); `s.time_limit_s` is the caller's to
     /// apply, and adaptive settings are refused.
     pub fn progressive<'a>(&'a self, c: &'a Compiled, s: &RenderSettings) -> Result<GpuProgressive<'a>> {
+        let sums = self.sums(c, s)?;
+        let blocks = Blocks::new(sums.buffers.pixels as usize);
+        Ok(GpuProgressive { sums, blocks })
+    }
+
+    /// The running sums of one block on this adapter (`progressive::RunningSums`).
+    pub(crate) fn sums<'a>(&'a self, c: &'a Compiled, s: &RenderSettings) -> Result<GpuSums<'a>> {
         s.check()?;
         if s.adaptive.is_some() {
             bail!("a progressive render adds the same samples to every pixel: adaptive sampling does not apply");
@@ -453,8 +475,10 @@ impl Gpu {
             Dispatch::Persistent => PERSISTENT_ENTRY,
         };
         let pipeline = self.pipeline(entry, variant(c, &s))?;
-        let per_dispatch = ((PATHS_PER_PASS / pixels.max(1)) as u32).clamp(1, s.spp.min(max_per_pass));
-        Ok(GpuProgressive { gpu: self, c, s, buffers, pipeline, per_dispatch, rounds, persistent_groups, spp: 0 })
+        // A dispatch never crosses a block (`blocks`): more samples would be cut anyway.
+        let per_dispatch =
+            ((PATHS_PER_PASS / pixels.max(1)) as u32).clamp(1, s.spp.min(max_per_pass).min(BLOCK_SAMPLES));
+        Ok(GpuSums { gpu: self, c, s, buffers, pipeline, per_dispatch, rounds, persistent_groups })
     }
 
     /// Casts a batch of rays through the scene's tree (no shading); one result per ray.
@@ -538,9 +562,9 @@ struct ImageBuffers {
     accum_bytes: u64,
 }
 
-/// A render in progress on a GPU (`Gpu::progressive`): the scene and the sums on the device,
-/// each pass one or more dispatches.
-pub struct GpuProgressive<'a> {
+/// One block's running sums on a GPU (`Gpu::sums`): the scene and the sums on the device, each
+/// addition one or more dispatches.
+pub(crate) struct GpuSums<'a> {
     gpu: &'a Gpu,
     c: &'a Compiled,
     /// The settings, the traversal resolved for the adapter.
@@ -548,24 +572,24 @@ pub struct GpuProgressive<'a> {
     buffers: ImageBuffers,
     pipeline: wgpu::ComputePipeline,
     /// The most samples per pixel one dispatch adds (about `PATHS_PER_PASS` paths, at most
-    /// `s.spp`, within the CPU adapters' limits).
+    /// `s.spp` and a block, within the CPU adapters' limits).
     per_dispatch: u32,
     /// The persistent kernel's rounds per workgroup (`RenderParams::persistent_rounds`).
     rounds: u32,
     persistent_groups: u32,
-    spp: u32,
 }
 
-impl GpuProgressive<'_> {
-    /// The most samples per pixel one dispatch adds; a pass of more takes several dispatches.
-    pub fn per_dispatch(&self) -> u32 {
-        self.per_dispatch
+impl RunningSums for GpuSums<'_> {
+    fn zero(&mut self) -> Result<()> {
+        let (g, b) = (self.gpu, &self.buffers);
+        let mut encoder = g.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("zero") });
+        encoder.clear_buffer(&b.accum, 0, None);
+        encoder.clear_buffer(&b.accum_sq, 0, None);
+        g.queue.submit(Some(encoder.finish()));
+        Ok(())
     }
-}
 
-impl Progressive for GpuProgressive<'_> {
-    fn pass(&mut self, start: u32, count: u32) -> Result<()> {
-        check_pass(self.spp, start, count)?;
+    fn add(&mut self, start: u32, count: u32) -> Result<()> {
         let (g, s, b) = (self.gpu, &self.s, &self.buffers);
         let end = start + count;
         let mut at = start;
@@ -586,31 +610,74 @@ impl Progressive for GpuProgressive<'_> {
                 }
             }
             at += count;
-            self.spp = at;
         }
         Ok(())
     }
 
-    fn image(&mut self) -> Result<Rendered> {
+    fn read(&mut self) -> Result<Sums> {
         let (g, b) = (self.gpu, &self.buffers);
+        Ok(Sums { sum: g.read_back(&b.accum, b.accum_bytes)?, sum_sq: g.read_back(&b.accum_sq, b.accum_bytes)? })
+    }
+
+    fn primary(&mut self) -> Result<Vec<u32>> {
+        let (g, b) = (self.gpu, &self.buffers);
+        g.read_back(&b.primary, b.pixels * 4)
+    }
+
+    fn name(&self) -> String {
+        self.gpu.adapter.name.clone()
+    }
+}
+
+/// A render in progress on a GPU (`Gpu::progressive`): the running block's sums on the device,
+/// the fold of the completed blocks on the host.
+pub struct GpuProgressive<'a> {
+    sums: GpuSums<'a>,
+    blocks: Blocks,
+}
+
+impl GpuProgressive<'_> {
+    /// The most samples per pixel one dispatch adds; a pass of more takes several dispatches.
+    pub fn per_dispatch(&self) -> u32 {
+        self.sums.per_dispatch
+    }
+}
+
+impl Progressive for GpuProgressive<'_> {
+    fn pass(&mut self, start: u32, count: u32) -> Result<()> {
+        self.blocks.pass(&mut self.sums, start, count)
+    }
+
+    fn image(&mut self) -> Result<Rendered> {
+        let sums = self.blocks.total(&mut self.sums)?;
+        let primary = self.sums.primary()?;
+        let s = &self.sums.s;
         Ok(Rendered {
-            width: self.s.width,
-            height: self.s.height,
-            spp: self.spp,
-            sum: g.read_back(&b.accum, b.accum_bytes)?,
-            sum_sq: g.read_back(&b.accum_sq, b.accum_bytes)?,
-            primary: g.read_back(&b.primary, b.pixels * 4)?,
-            traversal: self.s.traversal,
+            width: s.width,
+            height: s.height,
+            spp: self.blocks.spp(),
+            sum: sums.sum,
+            sum_sq: sums.sum_sq,
+            primary,
+            traversal: s.traversal,
             counts: None,
         })
     }
 
     fn spp(&self) -> u32 {
-        self.spp
+        self.blocks.spp()
     }
 
     fn device(&self) -> String {
-        self.gpu.adapter.name.clone()
+        self.sums.name()
+    }
+
+    fn start_at(&mut self, start: u32) -> Result<()> {
+        self.blocks.start_at(start)
+    }
+
+    fn nodes(&mut self) -> Result<Vec<Node>> {
+        self.blocks.nodes(&mut self.sums)
     }
 }
 

@@ -4,12 +4,15 @@
 //! renders driven one pass at a time on either device (`progressive`), the CPU ≡ GPU check
 //! (`verify`) and the ray-casting benchmark (`raybench`).
 pub mod adaptive;
+pub mod blocks;
 pub mod cpu;
 pub mod features;
 pub mod gpu;
 pub mod kdc;
 pub mod load;
 pub mod memory;
+pub mod multi;
+pub mod partial;
 pub mod progressive;
 pub mod raybench;
 pub mod verify;

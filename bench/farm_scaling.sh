@@ -134,9 +134,16 @@ print(f"part: {merge['part_bytes']} bytes; merge of {merge['parts']} parts {merg
       f"merged = single render: {merge['merged_equals_single']}")
 print(f"Ray: {dispatch:.3f} s per task beyond kdtrace's own run (from the {workers[0]}-worker run)")
 base = ray[workers[0]]["render_wall_s"]
+sys.path.insert(0, "farm")
+import scaling  # noqa: E402
+m = res["model_inputs"]
+cores = os.cpu_count()
 for w in workers:
     r = ray[w]
+    predicted = scaling.model(spp, m["t_sample_s"], m["start_s"], m["part_bytes"], 10e9 / 8, 1 / m["merge_bytes_per_s"],
+                              int(w), tasks=r["tasks"], cores=cores)
     print(f"Ray, {w} worker node(s): {r['render_wall_s']:.2f} s + merge {r['merge_s']:.2f} s "
-          f"(speed-up {base / r['render_wall_s']:.2f} against {workers[0]})")
+          f"(speed-up {base / r['render_wall_s']:.2f} against {workers[0]}); the model, {r['tasks']} tasks on "
+          f"{min(int(w), cores)} of {cores} cores: {predicted:.2f} s")
 PY
 python3 farm/scaling.py --measured "$out/results.json"

@@ -3,12 +3,16 @@
 (bench/farm_scaling.sh writes them): where the speed-up comes from, and where start-up or the
 merge eat it.
 
-One render of SPP samples is cut into K = N ranges (farm/ranges.py: whole blocks of 8), one per
-node, all running at once. The image is ready when the slowest range is done and every part has
-reached the merging machine and been merged:
+One render of SPP samples is cut into K ranges (farm/ranges.py: whole blocks of 8; K = N unless
+--tasks says otherwise), spread over N nodes that each run ceil(K / N) of them one after another,
+every task paying its start-up. The image is ready when the slowest node is done and every part
+has reached the merging machine and been merged:
 
-    T(N)  = start + ceil(B / N) · 8 · t_block_sample + merge(N)           B = ceil(SPP / 8) blocks
-    T(1)  = start + SPP · t_sample                    (one machine: no part, no merge)
+    T(N)  = ceil(K / N) · (start + ceil(B / K) · 8 · t_sample) + merge(K)   B = ceil(SPP / 8) blocks
+    T(1)  = start + SPP · t_sample                    (one machine, one task: no part, no merge)
+
+With --cores C (a local check: N one-CPU "nodes" sharing C cores) at most C nodes compute at
+once, so N counts as min(N, C).
 
   start           per task, paid once on every node in parallel: process start, scene parse and
                   k-d build (or .kdc load), GPU kernel compile, plus the scheduler's dispatch
@@ -32,16 +36,19 @@ import math
 import sys
 
 
-def model(spp, t_sample, start, part_bytes, bandwidth, merge_s_per_byte, n, tree=False):
-    """Predicted seconds for one render on n nodes (n ranges)."""
+def model(spp, t_sample, start, part_bytes, bandwidth, merge_s_per_byte, n, tree=False, tasks=None, cores=None):
+    """Predicted seconds for one render on n nodes in `tasks` ranges (default n), at most
+    `cores` of the nodes computing at once (default all)."""
     blocks = math.ceil(spp / 8)
-    k = min(n, blocks)  # more ranges than blocks is impossible
+    k = min(tasks or n, blocks)  # more ranges than blocks is impossible
+    nodes = min(n, k, cores or n)
     if k == 1:
         return start + spp * t_sample
+    rounds = math.ceil(k / nodes)
     compute = math.ceil(blocks / k) * 8 * t_sample
     per_part = part_bytes * (1 / bandwidth + merge_s_per_byte)
     merge = (math.ceil(math.log2(k)) if tree else k) * per_part
-    return start + compute + merge
+    return rounds * (start + compute) + merge
 
 
 def main(argv=None):

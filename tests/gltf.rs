@@ -373,12 +373,9 @@ fn a_textured_quad_is_upright_in_every_primitive_mode_and_transforms() {
 #[test]
 fn alpha_masks_cut_out_below_the_cutoff() {
     let dir = folder("alpha");
-    for (material, cut) in [
-        (r#""alphaMode": "MASK", "#, true),
-        (r#""alphaMode": "MASK", "alphaCutoff": 0.3, "#, false),
-        (r#""alphaMode": "BLEND", "#, true),
-        ("", false),
-    ] {
+    for (material, cut) in
+        [(r#""alphaMode": "MASK", "#, true), (r#""alphaMode": "MASK", "alphaCutoff": 0.3, "#, false), ("", false)]
+    {
         let path = dir.join("alpha.gltf");
         let png = png_quadrants_alpha(102);
         std::fs::write(&path, quad_gltf_with(r#""name": "q""#, "[0, 0, 3]", "", 4, material, &png)).unwrap();
@@ -562,6 +559,12 @@ fn scene_files_export_and_compile_carry_gltf_meshes() {
 /// camera at (0, 0, 3), and one KHR_lights_punctual light `light` (a JSON object) on a node with
 /// the members `light_node` (its transform).
 fn lit_quad_gltf(light: &str, light_node: &str) -> String {
+    let material = r#"{"pbrMetallicRoughness": {"baseColorFactor": [0.5, 0.5, 0.5, 1], "metallicFactor": 0, "roughnessFactor": 1}}"#;
+    lit_quad_gltf_with(light, light_node, material)
+}
+
+/// `lit_quad_gltf` with the quad's `material` (a JSON object).
+fn lit_quad_gltf_with(light: &str, light_node: &str, material: &str) -> String {
     let positions: [[f32; 3]; 4] = [[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [1.0, 1.0, 0.0], [-1.0, 1.0, 0.0]];
     let mut buf: Vec<u8> = positions.iter().flatten().flat_map(|p| p.to_le_bytes()).collect();
     for i in [0u16, 1, 2, 0, 2, 3] {
@@ -578,7 +581,7 @@ fn lit_quad_gltf(light: &str, light_node: &str) -> String {
             {{"extensions": {{"KHR_lights_punctual": {{"light": 0}}}}, {light_node}}}],
   "cameras": [{{"type": "perspective", "perspective": {{"yfov": 0.6, "znear": 0.01}}}}],
   "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0}}, "indices": 1, "material": 0}}]}}],
-  "materials": [{{"pbrMetallicRoughness": {{"baseColorFactor": [0.5, 0.5, 0.5, 1], "metallicFactor": 0, "roughnessFactor": 1}}}}],
+  "materials": [{material}],
   "buffers": [{{"byteLength": {len}, "uri": "data:application/octet-stream;base64,{data}"}}],
   "bufferViews": [{{"buffer": 0, "byteOffset": 0, "byteLength": 48}}, {{"buffer": 0, "byteOffset": 48, "byteLength": 12}}],
   "accessors": [
@@ -743,5 +746,56 @@ fn volumes_absorb_by_beer_lambert() {
         let a = keep.powf(0.5);
         let want = f + (1.0 - f) * (1.0 - f) * a / (1.0 - f * a);
         assert!((tinted[k] - want).abs() < 4e-3, "channel {k}: {}, want {want}", tinted[k]);
+    }
+}
+
+/// alphaMode BLEND is stochastic transparency: a camera ray passes the surface with probability
+/// 1 − alpha, so the albedo image (black where nothing is hit) shows alpha × the albedo on
+/// average: the textured quad's top left quadrant of alpha 0.4 (its texture's), a grey quad of
+/// constant alpha 0.3 (its factor's). Under a sky, lavapipe renders the same bits as the CPU.
+#[test]
+fn blend_is_stochastic_transparency() {
+    let dir = folder("blend");
+    let mean_of = |r: &Rendered, xs: std::ops::Range<usize>, ys: std::ops::Range<usize>| {
+        let mut sum = [0f32; 3];
+        let n = (xs.len() * ys.len()) as f32;
+        for y in ys {
+            for x in xs.clone() {
+                let p = pixel(r, x, y);
+                (0..3).for_each(|k| sum[k] += p[k] / n);
+            }
+        }
+        sum
+    };
+    let textured = dir.join("textured.gltf");
+    let png = png_quadrants_alpha(102);
+    std::fs::write(&textured, quad_gltf_with(r#""name": "q""#, "[0, 0, 3]", "", 4, r#""alphaMode": "BLEND", "#, &png))
+        .unwrap();
+    let l = load(&textured, None);
+    let s = RenderSettings { aov: Aov::Albedo, ..settings(&l, small(16, 16, 256)) };
+    let r = cpu::render(&l.compiled, &s, &none).unwrap();
+    let (got, full) = (mean_of(&r, 2..6, 2..6), linear(QUADRANTS[0]));
+    for k in 0..3 {
+        let want = 0.4 * full[k];
+        assert!((got[k] - want).abs() <= 0.05 * full[k] + 1e-3, "textured: {got:?}, want 0.4 × {full:?}");
+    }
+    assert!(close(mean_of(&r, 10..14, 10..14), linear(QUADRANTS[3])), "the opaque quadrant");
+    let lit = settings(&l, SceneSettings { environment: Some([1.0; 3]), bounces: Some(2), ..small(12, 12, 8) });
+    let g = gpu::Gpu::lavapipe().unwrap();
+    let (a, b) = (cpu::render(&l.compiled, &lit, &none).unwrap(), g.render(&l.compiled, &lit, &none).unwrap());
+    assert!(bits(&a) == bits(&b), "lavapipe's image differs from the CPU's");
+
+    let constant = dir.join("constant.gltf");
+    let material = r#"{"alphaMode": "BLEND", "pbrMetallicRoughness": {"baseColorFactor": [0.5, 0.5, 0.5, 0.3], "metallicFactor": 0}}"#;
+    std::fs::write(
+        &constant,
+        lit_quad_gltf_with(r#"{"type": "point", "intensity": 1}"#, r#""translation": [0, 0, 1]"#, material),
+    )
+    .unwrap();
+    let l = load(&constant, None);
+    let s = RenderSettings { aov: Aov::Albedo, ..settings(&l, small(16, 16, 256)) };
+    let got = mean_of(&cpu::render(&l.compiled, &s, &none).unwrap(), 4..12, 4..12);
+    for k in 0..3 {
+        assert!((got[k] - 0.15).abs() <= 0.01, "constant alpha 0.3 over albedo 0.5: {got:?}");
     }
 }

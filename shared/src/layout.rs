@@ -101,7 +101,9 @@ pub struct Material {
     /// in the texture buffer (`binding::TEXTURES`), after the textures; 0 for every other
     /// material.
     pub table: u32,
-    pub _pad: [u32; 2],
+    /// How the alpha mask (`TEXTURE_ALPHA`) cuts: `ALPHA_CUT` or `ALPHA_BLEND`.
+    pub alpha_mode: u32,
+    pub _pad: u32,
     /// Diffuse albedo (MTL `Kd`), linear RGB in `xyz`.
     pub albedo: Vec4,
     /// Emitted radiance from the front (counter-clockwise) side (MTL `Ke`), linear RGB in `xyz`.
@@ -139,6 +141,11 @@ pub const TEXTURE_METALLIC: usize = 4;
 pub const TEXTURE_NORMAL: usize = 5;
 /// Alpha below this cuts the surface out (the usual alpha-test threshold).
 pub const ALPHA_CUTOFF: f32 = 0.5;
+/// `Material::alpha_mode`: the mask cuts where it is below `ALPHA_CUTOFF`.
+pub const ALPHA_CUT: u32 = 0;
+/// `Material::alpha_mode`: stochastic transparency (glTF `BLEND`): a ray passes a hit with
+/// probability 1 − alpha, so that on average the surface covers alpha of what is behind it.
+pub const ALPHA_BLEND: u32 = 1;
 
 /// A triangle's vertex attributes (OBJ `vn` and `vt`), in the order of its vertices v0, v1, v2:
 /// unit shading normals in the `xyz` of `n0`, `n1`, `n2` (all zero: the triangle has none and

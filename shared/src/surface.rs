@@ -28,9 +28,10 @@ use crate::features::{Variant, FEATURE_TEXTURES, FEATURE_VERTEX_NORMALS};
 use crate::glam::{Vec2, Vec3};
 use crate::kdtree::Hit;
 use crate::layout::{
-    Material, ALPHA_CUTOFF, NO_TEXTURE, TEXTURE_ALBEDO, TEXTURE_ALPHA, TEXTURE_EMISSION, TEXTURE_METALLIC,
+    Material, ALPHA_BLEND, ALPHA_CUTOFF, NO_TEXTURE, TEXTURE_ALBEDO, TEXTURE_ALPHA, TEXTURE_EMISSION, TEXTURE_METALLIC,
     TEXTURE_NORMAL, TEXTURE_ROUGHNESS,
 };
+use crate::rng::{pcg4d, u32_to_unit_f32};
 use crate::scene::SceneView;
 use crate::texture::sample;
 use crate::vecmath::{cross, dot, length_squared, normalize, xyz};
@@ -221,7 +222,9 @@ pub fn material_at(scene: &SceneView, v: Variant, hit: &Hit) -> Material {
 
 /// Whether a hit on triangle `tri` with unnormalised weights (u, v, w) is cut out by its
 /// material's alpha mask. Only tested when `scene.alpha_masks` is set (the variant has alpha
-/// masks).
+/// masks). Stochastic transparency (`ALPHA_BLEND`) compares alpha with a uniform hashed from
+/// the triangle and the hit's weights: the same bits on every device, independent between
+/// rays, and the same answer when the traversal tests the same hit again.
 #[inline(always)]
 pub fn cut_out(scene: &SceneView, tri: u32, u: f32, v: f32, w: f32) -> bool {
     let mut out = false;
@@ -230,7 +233,13 @@ pub fn cut_out(scene: &SceneView, tri: u32, u: f32, v: f32, w: f32) -> bool {
         let mask = m.textures[TEXTURE_ALPHA];
         if mask != NO_TEXTURE {
             let uv = uv_at(scene, tri, weights(u, v, w));
-            out = sample(scene.textures, mask - 1, uv).x < ALPHA_CUTOFF;
+            let alpha = sample(scene.textures, mask - 1, uv).x;
+            let threshold = if m.alpha_mode == ALPHA_BLEND {
+                u32_to_unit_f32(pcg4d(tri, u.to_bits(), v.to_bits(), w.to_bits())[0])
+            } else {
+                ALPHA_CUTOFF
+            };
+            out = alpha < threshold;
         }
     }
     out

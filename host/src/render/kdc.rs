@@ -32,9 +32,9 @@ use bytemuck::Pod;
 use serde::{Deserialize, Serialize};
 use shared::glam::{DVec3, Vec3, Vec4};
 use shared::layout::{
-    KdNode, Light, Material, Triangle, TriangleAttributes, TriangleInfo, KD_MAX_DEPTH, MATERIAL_CONDUCTOR,
-    MATERIAL_DIELECTRIC, MATERIAL_DIFFUSE, MATERIAL_PLASTIC, MATERIAL_PRINCIPLED, NO_LIGHT, PUNCTUAL_DIRECTIONAL,
-    PUNCTUAL_POINT, PUNCTUAL_SPOT,
+    KdNode, Light, Material, Triangle, TriangleAttributes, TriangleInfo, ALPHA_BLEND, ALPHA_CUT, KD_MAX_DEPTH,
+    MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, MATERIAL_DIFFUSE, MATERIAL_PLASTIC, MATERIAL_PRINCIPLED, NO_LIGHT,
+    PUNCTUAL_DIRECTIONAL, PUNCTUAL_POINT, PUNCTUAL_SPOT,
 };
 use std::path::Path;
 use xxhash_rust::xxh3::Xxh3;
@@ -610,6 +610,9 @@ fn check_scene(h: &Header, s: &Sections) -> Result<()> {
             .contains(&m.kind)
         {
             bail!("material {i}: unknown kind {}", m.kind);
+        }
+        if ![ALPHA_CUT, ALPHA_BLEND].contains(&m.alpha_mode) {
+            bail!("material {i}: unknown alpha mode {}", m.alpha_mode);
         }
         if !rgb_ok(m.albedo) || !rgb_ok(m.emission) || !rgb_ok(m.eta) || !rgb_ok(m.k) || !m.params.is_finite() {
             bail!("material {i}: colours and indices of refraction must be finite and non-negative");

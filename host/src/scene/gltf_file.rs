@@ -23,7 +23,7 @@ use anyhow::{anyhow, bail, Result};
 use base64::Engine;
 use shared::glam::{DMat3, DMat4, DQuat, DVec3, Vec3};
 use shared::layout::{
-    Material, ALPHA_CUTOFF, NO_TEXTURE, TEXTURE_ALBEDO, TEXTURE_ALPHA, TEXTURE_EMISSION, TEXTURE_METALLIC,
+    Material, ALPHA_BLEND, ALPHA_CUTOFF, NO_TEXTURE, TEXTURE_ALBEDO, TEXTURE_ALPHA, TEXTURE_EMISSION, TEXTURE_METALLIC,
     TEXTURE_NORMAL, TEXTURE_ROUGHNESS,
 };
 use std::collections::BTreeSet;

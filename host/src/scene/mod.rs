@@ -20,7 +20,7 @@ pub use environment::{EnvironmentMap, PunctualLight};
 use anyhow::{bail, Result};
 use shared::glam::{DVec3, Vec3, Vec4};
 use shared::layout::{
-    Light, Material, Triangle, TriangleAttributes, TriangleInfo, MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC,
+    Light, Material, Triangle, TriangleAttributes, TriangleInfo, ALPHA_CUT, MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC,
     MATERIAL_DIFFUSE, MATERIAL_PLASTIC, MATERIAL_PRINCIPLED, NO_LIGHT, NO_TEXTURE,
 };
 use shared::material::is_emissive;
@@ -134,7 +134,8 @@ pub fn diffuse(albedo: Vec3, emission: Vec3) -> Material {
     Material {
         kind: MATERIAL_DIFFUSE,
         table: 0,
-        _pad: [0; 2],
+        alpha_mode: ALPHA_CUT,
+        _pad: 0,
         albedo: albedo.extend(0.0),
         emission: emission.extend(0.0),
         params: Vec4::ZERO,

@@ -111,16 +111,22 @@ pub(super) fn material(
             slots.push(("emissiveTexture", t, TEXTURE_EMISSION, Kind::ColourTimes(bits(emissive))));
         }
     }
-    // Alpha: MASK (and BLEND, as MASK at 0.5) cut out where baseColor alpha × factor < cutoff.
+    // Alpha: MASK cuts out where baseColor alpha × factor < cutoff; BLEND is stochastic
+    // transparency with that alpha (`ALPHA_BLEND`), a constant one through a 1×1 texture.
     let mut invisible = false;
+    let mut constant_alpha = None;
     let mode = m.alpha_mode();
-    if mode != ::gltf::material::AlphaMode::Opaque {
-        let cutoff = if mode == ::gltf::material::AlphaMode::Mask { m.alpha_cutoff().unwrap_or(0.5) } else { 0.5 };
-        if mode == ::gltf::material::AlphaMode::Blend {
-            notes.insert(format!(
-                "{p}: {label}: alphaMode BLEND rendered as MASK at alpha 0.5 (no partial transparency)"
-            ));
+    if mode == ::gltf::material::AlphaMode::Blend {
+        mat.alpha_mode = ALPHA_BLEND;
+        match pbr.base_color_texture() {
+            Some(t) => {
+                slots.push(("baseColorTexture (alpha)", t, TEXTURE_ALPHA, Kind::ChannelTimes(3, base[3].to_bits())));
+            }
+            None if base[3] < 1.0 => constant_alpha = Some(base[3]),
+            None => {}
         }
+    } else if mode == ::gltf::material::AlphaMode::Mask {
+        let cutoff = m.alpha_cutoff().unwrap_or(0.5);
         if cutoff > 0.0 && cutoff.is_finite() {
             match pbr.base_color_texture() {
                 Some(t) => {
@@ -161,6 +167,19 @@ pub(super) fn material(
         let (name, bytes) = image_source(path, buffers, files, &image);
         let wanted_by = format!("{p}: {label}: {key}");
         mat.textures[*slot] = textures.load_bytes(&name, bytes, *kind, clamp, &wanted_by)?;
+    }
+    if let Some(alpha) = constant_alpha {
+        let white = || {
+            let mut png = Vec::new();
+            image::RgbaImage::from_pixel(1, 1, image::Rgba([255; 4]))
+                .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+                .map_err(|e| anyhow!("a 1×1 alpha texture: {e}"))?;
+            Ok(png)
+        };
+        let wanted_by = format!("{p}: {label}: baseColorFactor alpha");
+        let kind = Kind::ChannelTimes(3, alpha.to_bits());
+        mat.textures[TEXTURE_ALPHA] =
+            textures.load_bytes(Path::new("(constant alpha)"), white, kind, true, &wanted_by)?;
     }
     if mat.textures[TEXTURE_EMISSION] != NO_TEXTURE {
         let mean = textures.textures[mat.textures[TEXTURE_EMISSION] as usize - 1].mean_rgb();

@@ -72,7 +72,8 @@ fn linear(c: [u8; 3]) -> [f32; 3] {
 
 /// Every sample loads and renders without NaN or Inf, the same bits on the CPU and lavapipe:
 /// the albedo and normal images (texture lookups, UVs, normals, cut-outs, cameras) and radiance
-/// under a constant sky, under an environment map and in the dark (the samples' own emitters).
+/// under a constant sky, in the dark (the samples' own emitters) and, for a textured and a
+/// metal sample, under an environment map.
 #[test]
 fn every_sample_renders_on_the_cpu_and_lavapipe_alike() {
     let g = gpu::Gpu::lavapipe().unwrap();
@@ -88,9 +89,11 @@ fn every_sample_renders_on_the_cpu_and_lavapipe_alike() {
         let lit =
             settings(&l, SceneSettings { environment: Some([0.8, 0.9, 1.0]), bounces: Some(3), ..small(20, 20, 2) });
         let dark = RenderSettings { environment: shared::glam::Vec3::ZERO, ..lit };
+        // Under a map: two samples (a pipeline compile each on lavapipe), textured and metal.
         let mut mapped = load(&data(file), None).compiled;
         mapped.scene.environment_map = Some(sky_map());
         mapped.prepare_emitters();
+        let with_map = file.starts_with("TextureTransformTest") || file.starts_with("MetalRough");
         for (what, c, s) in [
             ("albedo", &l.compiled, RenderSettings { aov: Aov::Albedo, ..lit }),
             ("normal", &l.compiled, RenderSettings { aov: Aov::Normal, ..lit }),
@@ -98,6 +101,9 @@ fn every_sample_renders_on_the_cpu_and_lavapipe_alike() {
             ("lit radiance", &l.compiled, lit),
             ("radiance under a map", &mapped, dark),
         ] {
+            if what == "radiance under a map" && !with_map {
+                continue;
+            }
             let a = cpu::render(c, &s, &none).unwrap();
             assert!(a.sum.iter().chain(&a.sum_sq).all(|p| p.is_finite()), "{file} {what}: NaN or Inf on the CPU");
             if what != "dark radiance" {
@@ -730,8 +736,10 @@ fn volumes_absorb_by_beer_lambert() {
         let s = settings(&l, SceneSettings { environment: Some([1.0; 3]), bounces: Some(6), ..small(3, 3, 4096) });
         let r = cpu::render(&l.compiled, &s, &none).unwrap();
         if let Some(g) = gpu {
-            let b = g.render(&l.compiled, &s, &none).unwrap();
-            assert!(bits(&r) == bits(&b), "{name}: lavapipe's image differs from the CPU's");
+            // Fewer samples on lavapipe: a dispatch holds one 8-sample block.
+            let s = RenderSettings { spp: 64, ..s };
+            let (a, b) = (cpu::render(&l.compiled, &s, &none).unwrap(), g.render(&l.compiled, &s, &none).unwrap());
+            assert!(bits(&a) == bits(&b), "{name}: lavapipe's image differs from the CPU's");
         }
         (l, pixel(&r, 1, 1))
     };

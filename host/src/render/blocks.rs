@@ -17,6 +17,7 @@
 //! counter when blocks come in order; blocks out of order wait for their siblings), so what it
 //! holds is always the maximal aligned nodes of the blocks it was given.
 use anyhow::{bail, Result};
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use shared::glam::Vec4;
 
@@ -42,16 +43,17 @@ impl Sums {
         Self { sum: vec![Vec4::ZERO; pixels], sum_sq: vec![Vec4::ZERO; pixels] }
     }
 
-    /// `self + right`, per pixel and component: the fold's one operation.
+    /// `self + right`, per pixel and component: the fold's one operation (each pixel on its own,
+    /// so rayon's split changes no bit; a large image's fold costs a fraction of a block).
     fn add(&self, right: &Sums) -> Sums {
-        let add = |a: &[Vec4], b: &[Vec4]| a.iter().zip(b).map(|(a, b)| *a + *b).collect();
+        let add = |a: &[Vec4], b: &[Vec4]| a.par_iter().zip(b).map(|(a, b)| *a + *b).collect();
         Sums { sum: add(&self.sum, &right.sum), sum_sq: add(&self.sum_sq, &right.sum_sq) }
     }
 
     fn add_assign(&mut self, right: &Sums) {
-        for (a, b) in self.sum.iter_mut().zip(&right.sum).chain(self.sum_sq.iter_mut().zip(&right.sum_sq)) {
-            *a += *b;
-        }
+        let add = |a: &mut [Vec4], b: &[Vec4]| a.par_iter_mut().zip(b).for_each(|(a, b)| *a += *b);
+        add(&mut self.sum, &right.sum);
+        add(&mut self.sum_sq, &right.sum_sq);
     }
 }
 

@@ -34,7 +34,7 @@
 //! | then W × H | pdf_uv of each cell (its probability × W·H) / 2π² |
 //! | then W × H × 3 | texels, RGB × strength, row by row from the top |
 use crate::glam::Vec3;
-use crate::sampling::ONE_MINUS_EPSILON;
+use crate::sampling::remap_between;
 use crate::trig::{atan2, sincos_turns_with};
 #[allow(unused_imports)]
 use spirv_std::num_traits::Float;
@@ -189,16 +189,7 @@ fn search(words: &[u32], c: u32, n: u32, u: f32) -> u32 {
 /// `u` rescaled within [cdf[i], cdf[i+1]) to [0, 1).
 #[inline]
 fn remap(words: &[u32], c: u32, i: u32, u: f32) -> f32 {
-    let lo = f(words, c + i);
-    let hi = f(words, c + i + 1);
-    let r = if hi > lo { (u - lo) / (hi - lo) } else { 0.0 };
-    if r < 0.0 {
-        0.0
-    } else if r < ONE_MINUS_EPSILON {
-        r
-    } else {
-        ONE_MINUS_EPSILON
-    }
+    remap_between(f(words, c + i), f(words, c + i + 1), u)
 }
 
 /// A sampled direction toward the environment: world direction (unit), the radiance from it and

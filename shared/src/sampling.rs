@@ -97,7 +97,12 @@ pub fn select_light(lights: &[Light], count: u32, u: f32) -> u32 {
 #[inline]
 pub fn remap_in_light(lights: &[Light], index: u32, u: f32) -> f32 {
     let lo = if index == 0 { 0.0 } else { lights[index as usize - 1].cdf };
-    let hi = lights[index as usize].cdf;
+    remap_between(lo, lights[index as usize].cdf, u)
+}
+
+/// `u`, which fell in a cdf's interval [lo, hi), rescaled to [0, 1).
+#[inline]
+pub fn remap_between(lo: f32, hi: f32, u: f32) -> f32 {
     let r = if hi > lo { (u - lo) / (hi - lo) } else { 0.0 };
     // Rounding may land exactly on 1 (or a hair below 0); keep the result in [0, 1).
     if r < 0.0 {

@@ -92,7 +92,20 @@ pub fn trace_sample_recorded<R: Recorder>(
     sample: u32,
     rec: &mut R,
 ) -> PathSample {
-    let mut rng = Sampler::new(p.sampler, py * p.width + px, sample, p.seed);
+    trace_path(scene, p, v, px, py, Sampler::new(p.sampler, py * p.width + px, sample, p.seed), rec)
+}
+
+/// `trace_sample_recorded` with the sample's sampler made by the caller.
+#[inline(always)]
+fn trace_path<R: Recorder>(
+    scene: &SceneView,
+    p: &RenderParams,
+    v: Variant,
+    px: u32,
+    py: u32,
+    mut rng: Sampler,
+    rec: &mut R,
+) -> PathSample {
     let (jx, jy) = rng.next_2d();
     let mut path = Path {
         origin: xyz(p.eye),
@@ -523,8 +536,15 @@ pub fn render_samples(
     let mut acc_sq = *sum_sq;
     let mut s = start;
     let end = start + count;
+    let pixel = y * p.width + x;
+    #[cfg(not(target_arch = "spirv"))]
+    let seeds = crate::rng::PixelSeeds::new(pixel, p.seed);
     while s < end {
-        let r = trace_sample(scene, p, v, x, y, s);
+        #[cfg(not(target_arch = "spirv"))]
+        let rng = Sampler::with_seeds(p.sampler, pixel, s, p.seed, seeds);
+        #[cfg(target_arch = "spirv")]
+        let rng = Sampler::new(p.sampler, pixel, s, p.seed);
+        let r = trace_path(scene, p, v, x, y, rng, &mut NoRecord);
         if s == 0 {
             *primary = r.primary;
         }

@@ -68,12 +68,55 @@ pub struct Sampler {
     set: u32,
     /// `sample.reverse_bits()`, shared by all of the sample's Sobol sets.
     reversed_sample: u32,
+    /// On the CPU, the Sobol sets' seeds, which depend on the pixel and not on the sample:
+    /// computed once for all of a pixel's samples (`PixelSeeds`), they were a third of the
+    /// sampler's time. A GPU thread computes them per set instead of holding an array.
+    #[cfg(not(target_arch = "spirv"))]
+    seeds: PixelSeeds,
+}
+
+/// The Sobol sets' seeds of one pixel (`Sampler::sobol_seeds`) and each set's scrambled zero
+/// (`sobol::shuffle_zero`), computed once for all of the pixel's samples (CPU only).
+#[cfg(not(target_arch = "spirv"))]
+#[derive(Clone, Copy)]
+pub struct PixelSeeds {
+    sets: [([u32; 4], u32); SOBOL_SETS as usize],
+}
+
+#[cfg(not(target_arch = "spirv"))]
+impl PixelSeeds {
+    #[inline]
+    pub fn new(pixel: u32, seed: u32) -> Self {
+        let mut sets = [([0u32; 4], 0u32); SOBOL_SETS as usize];
+        for (set, s) in sets.iter_mut().enumerate() {
+            let seeds = sobol_seeds(pixel, set as u32, seed);
+            *s = (seeds, crate::sobol::shuffle_zero(seeds));
+        }
+        Self { sets }
+    }
+}
+
+/// Set `set`'s Sobol seeds: one shuffles the sample index, three scramble the coordinates
+/// (`sobol::scrambled_sobol3`).
+#[inline]
+fn sobol_seeds(pixel: u32, set: u32, seed: u32) -> [u32; 4] {
+    pcg4d(pixel, set, seed, SOBOL_KEY)
 }
 
 impl Sampler {
     #[inline]
     pub fn new(kind: u32, pixel: u32, sample: u32, seed: u32) -> Self {
-        Self { kind, pixel, sample, seed, set: 0, reversed_sample: sample.reverse_bits() }
+        #[cfg(not(target_arch = "spirv"))]
+        return Self::with_seeds(kind, pixel, sample, seed, PixelSeeds::new(pixel, seed));
+        #[cfg(target_arch = "spirv")]
+        return Self { kind, pixel, sample, seed, set: 0, reversed_sample: sample.reverse_bits() };
+    }
+
+    /// `new` with the pixel's seeds computed beforehand (`PixelSeeds::new(pixel, seed)`).
+    #[cfg(not(target_arch = "spirv"))]
+    #[inline]
+    pub fn with_seeds(kind: u32, pixel: u32, sample: u32, seed: u32, seeds: PixelSeeds) -> Self {
+        Self { kind, pixel, sample, seed, set: 0, reversed_sample: sample.reverse_bits(), seeds }
     }
 
     /// The three uniforms of an explicit set; `next_3d` walks the sets.
@@ -82,11 +125,17 @@ impl Sampler {
         Self { set, ..Self::new(kind, pixel, sample, seed) }.next_3d()
     }
 
-    /// The current set's Sobol seeds: one shuffles the sample index, three scramble the
-    /// coordinates (`sobol::scrambled_sobol3`).
+    /// The current set's Sobol seeds and scrambled zero (`sobol::shuffle_zero`); the set is
+    /// below `SOBOL_SETS`.
     #[inline]
-    fn sobol_seeds(&self) -> [u32; 4] {
-        pcg4d(self.pixel, self.set, self.seed, SOBOL_KEY)
+    fn sobol_seeds(&self) -> ([u32; 4], u32) {
+        #[cfg(not(target_arch = "spirv"))]
+        return self.seeds.sets[(self.set as usize).min(SOBOL_SETS as usize - 1)];
+        #[cfg(target_arch = "spirv")]
+        {
+            let seeds = sobol_seeds(self.pixel, self.set, self.seed);
+            (seeds, crate::sobol::shuffle_zero(seeds))
+        }
     }
 
     /// The current set's independent uniforms, as bits.
@@ -98,7 +147,8 @@ impl Sampler {
     #[inline]
     pub fn next_3d(&mut self) -> [f32; 3] {
         let bits = if (self.kind == SAMPLER_SOBOL) & (self.set < SOBOL_SETS) {
-            crate::sobol::scrambled_sobol3(self.reversed_sample, self.sobol_seeds())
+            let (seeds, zero) = self.sobol_seeds();
+            crate::sobol::scrambled_sobol3(self.reversed_sample, seeds, zero)
         } else {
             let h = self.independent_bits();
             [h[0], h[1], h[2]]
@@ -112,7 +162,8 @@ impl Sampler {
     #[inline]
     pub fn next_2d(&mut self) -> (f32, f32) {
         let bits = if (self.kind == SAMPLER_SOBOL) & (self.set < SOBOL_SETS) {
-            crate::sobol::scrambled_sobol2(self.reversed_sample, self.sobol_seeds())
+            let (seeds, zero) = self.sobol_seeds();
+            crate::sobol::scrambled_sobol2(self.reversed_sample, seeds, zero)
         } else {
             let h = self.independent_bits();
             [h[0], h[1]]

@@ -106,10 +106,18 @@ fn superset_sum(s: u32) -> u32 {
     y
 }
 
-/// `scrambled_sobol3`'s first two coordinates at two thirds of the work.
+/// The index shuffle's image of 0 under `seeds` (`shuffle_index` xors it away): the same for
+/// every sample of a set, so a sampler may compute it once.
 #[inline]
-pub fn scrambled_sobol2(reversed_index: u32, seeds: [u32; 4]) -> [u32; 2] {
-    let shuffled = laine_karras(reversed_index, seeds[0]) ^ laine_karras(0, seeds[0]);
+pub fn shuffle_zero(seeds: [u32; 4]) -> u32 {
+    laine_karras(0, seeds[0])
+}
+
+/// `scrambled_sobol3`'s first two coordinates at two thirds of the work; `zero` is
+/// `shuffle_zero(seeds)`.
+#[inline]
+pub fn scrambled_sobol2(reversed_index: u32, seeds: [u32; 4], zero: u32) -> [u32; 2] {
+    let shuffled = laine_karras(reversed_index, seeds[0]) ^ zero;
     let x = sobol2_reversed(shuffled);
     [laine_karras(x[0], seeds[1]).reverse_bits(), laine_karras(x[1], seeds[2]).reverse_bits()]
 }
@@ -139,10 +147,10 @@ pub fn sobol3_reversed(reversed_index: u32) -> [u32; 3] {
 /// Point `index` of the shuffled, Owen-scrambled Sobol sequence in three dimensions, as 32-bit
 /// fractions: `nested_uniform_scramble(sobol3(shuffle_index(index, seeds[0]))[d], seeds[d + 1])`,
 /// computed in the reversed domain. `reversed_index` is `index.reverse_bits()`, which a
-/// sampler computes once per sample for all its sets.
+/// sampler computes once per sample for all its sets; `zero` is `shuffle_zero(seeds)`.
 #[inline]
-pub fn scrambled_sobol3(reversed_index: u32, seeds: [u32; 4]) -> [u32; 3] {
-    let shuffled = laine_karras(reversed_index, seeds[0]) ^ laine_karras(0, seeds[0]);
+pub fn scrambled_sobol3(reversed_index: u32, seeds: [u32; 4], zero: u32) -> [u32; 3] {
+    let shuffled = laine_karras(reversed_index, seeds[0]) ^ zero;
     let x = sobol3_reversed(shuffled);
     [
         laine_karras(x[0], seeds[1]).reverse_bits(),
@@ -209,8 +217,8 @@ mod tests {
                 assert_eq!(r[d], x[d].reverse_bits(), "index {i} dimension {d}");
             }
             let shuffled = sobol3(shuffle_index(i, seeds[0]));
-            let fast = scrambled_sobol3(i.reverse_bits(), seeds);
-            let two = scrambled_sobol2(i.reverse_bits(), seeds);
+            let fast = scrambled_sobol3(i.reverse_bits(), seeds, shuffle_zero(seeds));
+            let two = scrambled_sobol2(i.reverse_bits(), seeds, shuffle_zero(seeds));
             assert_eq!([fast[0], fast[1]], two, "index {i}");
             for d in 0..3 {
                 assert_eq!(fast[d], nested_uniform_scramble(shuffled[d], seeds[d + 1]), "index {i} dimension {d}");
@@ -258,7 +266,7 @@ mod tests {
             for m in 0..=8 {
                 let pts: Vec<(u32, u32)> = (0..1u32 << m)
                     .map(|i| {
-                        let p = scrambled_sobol3(i.reverse_bits(), seeds);
+                        let p = scrambled_sobol3(i.reverse_bits(), seeds, shuffle_zero(seeds));
                         (p[0], p[1])
                     })
                     .collect();
@@ -267,7 +275,7 @@ mod tests {
                 for d in 0..3 {
                     let mut cells = vec![0u32; 1 << m];
                     for i in 0..1u32 << m {
-                        let v = scrambled_sobol3(i.reverse_bits(), seeds)[d];
+                        let v = scrambled_sobol3(i.reverse_bits(), seeds, shuffle_zero(seeds))[d];
                         cells[if m == 0 { 0 } else { (v >> (32 - m)) as usize }] += 1;
                     }
                     assert!(cells.iter().all(|&c| c == 1), "seed {seed}, dimension {d}, 2^{m} points");

@@ -590,6 +590,24 @@ fn cases() -> Vec<Case> {
             &["t.gltf", "buffer 0", "base64"],
         ),
         gltf_case("glTF that is not JSON", "{\"asset\": ".into(), &["t.gltf", "not glTF JSON"]),
+        gltf_case(
+            "a glTF clear coat above 1",
+            gltf_tri("b.bin", 3, 2, 4, r#""materials": [{"extensions": {"KHR_materials_clearcoat": {"clearcoatFactor": 2}}}], "#)
+                .replace("\"mode\": 4", "\"material\": 0, \"mode\": 4"),
+            &["t.gltf", "material 0", "clearcoatFactor 2 is outside"],
+        ),
+        gltf_case(
+            "a glTF clear coat roughness that is not a number",
+            gltf_tri(
+                "b.bin",
+                3,
+                2,
+                4,
+                r#""materials": [{"extensions": {"KHR_materials_clearcoat": {"clearcoatRoughnessFactor": "x"}}}], "#,
+            )
+            .replace("\"mode\": 4", "\"material\": 0, \"mode\": 4"),
+            &["t.gltf", "material 0", "clearcoatRoughnessFactor is not a number"],
+        ),
         case(
             "a truncated GLB",
             vec![("t.glb", "glTF\u{2}\0\0\0\u{ff}\0\0\0")],

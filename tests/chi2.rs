@@ -620,6 +620,48 @@ fn principled_samples_follow_its_pdf() {
     }
 }
 
+/// A clear coat (KHR_materials_clearcoat) over the glTF model: a smooth-ish coat over a rough
+/// dielectric, a half coat over a metal and a rough coat over a transmissive mix, at two angles
+/// and from inside (no coat there); a coat 30% rougher is rejected (from inside, the base).
+#[test]
+fn clear_coated_principled_samples_follow_its_pdf() {
+    use kdtrace::scene::{clearcoat, principled, Principled};
+    let n = Vec3::Z;
+    let t = shared::sampling::orthonormal_basis(n).0;
+    let make = |metallic: f32, roughness: f32, transmission: f32, coat: f32, coat_roughness: f32| {
+        let p = Principled { base_color: Vec3::new(0.8, 0.5, 0.3), metallic, roughness, transmission, ior: 1.5 };
+        clearcoat(principled(&p, Vec3::ZERO), coat, coat_roughness)
+    };
+    let mut k = 0;
+    for (metallic, roughness, transmission, coat, coat_roughness) in
+        [(0.0f32, 0.7f32, 0.0f32, 1.0f32, 0.2f32), (1.0, 0.5, 0.0, 0.5, 0.3), (0.3, 0.6, 0.7, 0.8, 0.5)]
+    {
+        for (theta, front) in [(20.0f32, true), (75.0, true), (40.0, false)] {
+            let th = theta.to_radians();
+            let wo = (t * th.sin() + n * th.cos()).normalize();
+            let wrong = if front {
+                make(metallic, roughness, transmission, coat, coat_roughness * 1.3)
+            } else {
+                make(metallic, roughness * 1.3, transmission, coat, coat_roughness)
+            };
+            bsdf_chi2(
+                &format!(
+                    "principled metallic {metallic}, roughness {roughness}, transmission {transmission}, \
+                     coat {coat} (roughness {coat_roughness}), θ {theta}°, front {front}"
+                ),
+                &make(metallic, roughness, transmission, coat, coat_roughness),
+                &wrong,
+                &[],
+                n,
+                wo,
+                front,
+                450 + k,
+            );
+            k += 1;
+        }
+    }
+}
+
 /// A small non-uniform environment map (16×8: a gradient, a bright spot, a black band), rotated.
 fn test_environment_map(rotate: [f64; 3]) -> kdtrace::scene::EnvironmentMap {
     let (w, h) = (16u32, 8u32);

@@ -112,6 +112,8 @@ pub struct Material {
     /// coating, principled); `z`: metallic and `w`: transmission (principled).
     pub params: Vec4,
     /// Conductor: the real part of the complex index of refraction per channel, in `xyz`.
+    /// Principled: the clear coat's factor in `x` and its GGX α in `y`; any kind: a normal
+    /// map's scale in `w`.
     pub eta: Vec4,
     /// Conductor: the imaginary part (absorption), in `xyz`.
     pub k: Vec4,
@@ -139,6 +141,9 @@ pub const TEXTURE_METALLIC: usize = 4;
 /// toward increasing v): it bends the shading normal (`surface::shading_normal`) in the tangent
 /// frame of the triangle's texture coordinates; `eta.w` holds its scale (x and y are scaled).
 pub const TEXTURE_NORMAL: usize = 5;
+/// Slot of a principled material's clear coat factor (glTF `clearcoatTexture`'s R channel times
+/// `clearcoatFactor`): replaces `eta.x`.
+pub const TEXTURE_CLEARCOAT: usize = 6;
 /// Alpha below this cuts the surface out (the usual alpha-test threshold).
 pub const ALPHA_CUTOFF: f32 = 0.5;
 /// `Material::alpha_mode`: the mask cuts where it is below `ALPHA_CUTOFF`.

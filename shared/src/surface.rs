@@ -28,8 +28,8 @@ use crate::features::{Variant, FEATURE_TEXTURES, FEATURE_VERTEX_NORMALS};
 use crate::glam::{Vec2, Vec3};
 use crate::kdtree::Hit;
 use crate::layout::{
-    Material, ALPHA_BLEND, ALPHA_CUTOFF, NO_TEXTURE, TEXTURE_ALBEDO, TEXTURE_ALPHA, TEXTURE_EMISSION, TEXTURE_METALLIC,
-    TEXTURE_NORMAL, TEXTURE_ROUGHNESS,
+    Material, ALPHA_BLEND, ALPHA_CUTOFF, NO_TEXTURE, TEXTURE_ALBEDO, TEXTURE_ALPHA, TEXTURE_CLEARCOAT,
+    TEXTURE_EMISSION, TEXTURE_METALLIC, TEXTURE_NORMAL, TEXTURE_ROUGHNESS,
 };
 use crate::rng::{pcg4d, u32_to_unit_f32};
 use crate::scene::SceneView;
@@ -165,7 +165,8 @@ pub fn looks_up_textures(scene: &SceneView, v: Variant, m: &Material) -> bool {
         & ((t[TEXTURE_ALBEDO] != NO_TEXTURE)
             | (t[TEXTURE_EMISSION] != NO_TEXTURE)
             | (t[TEXTURE_ROUGHNESS] != NO_TEXTURE)
-            | (t[TEXTURE_METALLIC] != NO_TEXTURE))
+            | (t[TEXTURE_METALLIC] != NO_TEXTURE)
+            | (t[TEXTURE_CLEARCOAT] != NO_TEXTURE))
 }
 
 /// `m` with its textures looked up at weights `b` on triangle `tri` (module docs); `m` itself
@@ -196,6 +197,9 @@ pub fn resolve(scene: &SceneView, v: Variant, m: &Material, tri: u32, b: (f32, f
         }
         if t[TEXTURE_METALLIC] != NO_TEXTURE {
             r.params.z = sample(scene.textures, t[TEXTURE_METALLIC] - 1, uv).x;
+        }
+        if t[TEXTURE_CLEARCOAT] != NO_TEXTURE {
+            r.eta.x = sample(scene.textures, t[TEXTURE_CLEARCOAT] - 1, uv).x;
         }
     }
     r

@@ -626,6 +626,9 @@ fn check_scene(h: &Header, s: &Sections) -> Result<()> {
         if m.kind == MATERIAL_PRINCIPLED && !(0.0..=1.0).contains(&m.params.z) | !(0.0..=1.0).contains(&m.params.w) {
             bail!("material {i}: metallic {} and transmission {} must be within 0..=1", m.params.z, m.params.w);
         }
+        if m.kind == MATERIAL_PRINCIPLED && !(0.0..=1.0).contains(&m.eta.x) | !(0.0..=1.0).contains(&m.eta.y) {
+            bail!("material {i}: clear coat {} and its roughness alpha {} must be within 0..=1", m.eta.x, m.eta.y);
+        }
         // A rough plastic's coating table travels in the texture section, after the textures.
         let table_end = m.table as u64 + shared::material::ROUGH_PLASTIC_TABLE_WORDS as u64;
         if m.kind == MATERIAL_PLASTIC && m.params.x > 0.0 && table_end > textures.len() as u64 {

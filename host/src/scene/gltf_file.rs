@@ -16,15 +16,15 @@
 use crate::files::Files;
 use crate::scene::obj::{Mesh, MAX_COORDINATE};
 use crate::scene::texture::{Kind, TextureSet};
-use crate::scene::{principled, Principled, PunctualLight, WorldAttributes, WorldScene};
+use crate::scene::{clearcoat, principled, Principled, PunctualLight, WorldAttributes, WorldScene};
 use crate::settings::SceneSettings;
 use ::gltf::mesh::Mode;
 use anyhow::{anyhow, bail, Result};
 use base64::Engine;
 use shared::glam::{DMat3, DMat4, DQuat, DVec3, Vec3};
 use shared::layout::{
-    Material, ALPHA_BLEND, ALPHA_CUTOFF, NO_TEXTURE, TEXTURE_ALBEDO, TEXTURE_ALPHA, TEXTURE_EMISSION, TEXTURE_METALLIC,
-    TEXTURE_NORMAL, TEXTURE_ROUGHNESS,
+    Material, ALPHA_BLEND, ALPHA_CUTOFF, NO_TEXTURE, TEXTURE_ALBEDO, TEXTURE_ALPHA, TEXTURE_CLEARCOAT,
+    TEXTURE_EMISSION, TEXTURE_METALLIC, TEXTURE_NORMAL, TEXTURE_ROUGHNESS,
 };
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
@@ -35,8 +35,9 @@ use buffers::*;
 use material::*;
 
 /// Extensions whose effect is rendered.
-pub const SUPPORTED_EXTENSIONS: [&str; 6] = [
+pub const SUPPORTED_EXTENSIONS: [&str; 7] = [
     "KHR_texture_transform",
+    "KHR_materials_clearcoat",
     "KHR_materials_emissive_strength",
     "KHR_materials_transmission",
     "KHR_materials_ior",

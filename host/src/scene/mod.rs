@@ -192,6 +192,15 @@ pub fn principled(p: &Principled, emission: Vec3) -> Material {
     }
 }
 
+/// A principled material under a clear coat (KHR_materials_clearcoat): `factor` in [0, 1],
+/// perceptual `roughness` (α = roughness²); a factor of 0 leaves it uncoated.
+pub fn clearcoat(m: Material, factor: f32, roughness: f32) -> Material {
+    let mut m = m;
+    m.eta.x = factor;
+    m.eta.y = roughness * roughness;
+    m
+}
+
 impl Scene {
     /// Assembles a scene from triangles with a material index each. Zero-area triangles are
     /// dropped (and counted); emissive triangles become lights picked in proportion to their

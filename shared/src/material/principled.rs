@@ -13,9 +13,16 @@
 //! grazing view reflect almost twice the light it receives). Roughness is perceptual: α =
 //! roughness², at least `PRINCIPLED_MIN_ALPHA`, so the model has no delta lobe.
 //!
+//! A clear coat (KHR_materials_clearcoat) lies over all of it: a GGX reflection of its own α
+//! weighted by `clearcoat` and by the Fresnel reflectance of index 1.5 (the extension's f0 of
+//! 0.04, exact rather than Schlick's), over a base that keeps 1 − clearcoat·F of the light, F
+//! taken at the outgoing direction as for the base. The coat is thin (no refraction through it)
+//! and on the front side only: a ray that meets the surface from inside sees the base alone.
+//!
 //! Layout: `albedo` base colour; `params` = (α, ior, metallic, transmission); `k.xyz` the
 //! absorption coefficient of the medium inside (KHR_materials_volume, applied by the
-//! integrator to the distance a ray travels inside); `eta.w` a normal map's scale.
+//! integrator to the distance a ray travels inside); `eta.x` the clear coat's factor and
+//! `eta.y` its α (0: no coat); `eta.w` a normal map's scale.
 use super::dielectric::{fresnel_dielectric, refract, relative_eta, rough_transmission};
 use super::microfacet::{ggx_d, ggx_g1, ggx_sample_visible, ggx_visible_pdf};
 use super::{BsdfSample, Frame};
@@ -39,10 +46,28 @@ fn schlick(f0: Vec3, c: f32) -> Vec3 {
     f0 + (Vec3::ONE - f0) * x5
 }
 
+/// The clear coat's index of refraction: KHR_materials_clearcoat's f0 of 0.04.
+pub const COAT_IOR: f32 = 1.5;
+
+/// The clear coat a ray meets: its factor and GGX α, or a factor of 0 (none, or a ray from
+/// inside).
+#[inline]
+fn coat(m: &Material, front: bool) -> (f32, f32) {
+    let c = if front { m.eta.x } else { 0.0 };
+    (c, m.eta.y.max(PRINCIPLED_MIN_ALPHA))
+}
+
 /// The lobes' selection probabilities (specular, diffuse, transmission) for outgoing local
 /// direction `o`: each lobe's weight at o.
 #[inline]
 fn lobe_probabilities(m: &Material, o: Vec3, eta: f32) -> (f32, f32, f32) {
+    let (p, _) = lobes(m, o, eta);
+    p
+}
+
+/// `lobe_probabilities` and the sum of the lobes' weights (0 when the base reflects nothing).
+#[inline]
+fn lobes(m: &Material, o: Vec3, eta: f32) -> ((f32, f32, f32), f32) {
     let base = xyz(m.albedo);
     let (metallic, transmission) = (m.params.z, m.params.w);
     let f_n = fresnel_dielectric(o.z, eta).0;
@@ -54,9 +79,32 @@ fn lobe_probabilities(m: &Material, o: Vec3, eta: f32) -> (f32, f32, f32) {
     // regroups the three terms and rounds differently from the CPU).
     let sum = specular + entering;
     if sum <= 0.0 {
-        return (0.0, 0.0, 0.0);
+        return ((0.0, 0.0, 0.0), 0.0);
     }
-    (specular / sum, diffuse / sum, through / sum)
+    ((specular / sum, diffuse / sum, through / sum), sum)
+}
+
+/// With a coat of factor `c` over a base whose lobes weigh `base_sum` at `o`: the base's share
+/// 1 − c·F (F the coat's Fresnel at o) and the probability of sampling the coat, in proportion
+/// to c·F against the base's weight times its share.
+#[inline]
+fn coat_split(c: f32, o: Vec3, base_sum: f32) -> (f32, f32) {
+    let w = c * fresnel_dielectric(o.z, COAT_IOR).0;
+    let share = 1.0 - w;
+    let rest = share * base_sum;
+    let total = w + rest;
+    let p_coat = if total > 0.0 { w / total } else { 0.0 };
+    (share, p_coat)
+}
+
+/// The coat's reflection (f without the cosine) and its sampling pdf for `i.z > 0`.
+#[inline]
+fn coat_local(c: f32, a: f32, o: Vec3, i: Vec3) -> (Vec3, f32) {
+    let h = normalize(o + i);
+    let oh = dot(o, h);
+    let spec = ggx_d(a, h) * ggx_g1(a, o, h) * ggx_g1(a, i, h) / (4.0 * o.z * i.z);
+    let f = fresnel_dielectric(oh, COAT_IOR).0;
+    (Vec3::splat(c * (f * spec)), ggx_visible_pdf(a, o, h))
 }
 
 #[inline]
@@ -89,6 +137,20 @@ fn eval_local(m: &Material, o: Vec3, i: Vec3, eta: f32) -> (Vec3, f32) {
     (base * (entering * transmission * value), p_through * pdf)
 }
 
+/// `eval_local` under the coat (`coat`, factor `c` > 0, α `ca`).
+#[inline]
+fn eval_coated(m: &Material, o: Vec3, i: Vec3, eta: f32, c: f32, ca: f32) -> (Vec3, f32) {
+    let (base, base_pdf) = eval_local(m, o, i, eta);
+    let (_, base_sum) = lobes(m, o, eta);
+    let (share, p_coat) = coat_split(c, o, base_sum);
+    let (value, pdf) = (base * share, base_pdf * (1.0 - p_coat));
+    if i.z <= 0.0 {
+        return (value, pdf);
+    }
+    let (coat_value, coat_pdf) = coat_local(c, ca, o, i);
+    (value + coat_value, pdf + p_coat * coat_pdf)
+}
+
 #[inline]
 pub fn eval(m: &Material, n: Vec3, wo: Vec3, wi: Vec3, front: bool) -> (Vec3, f32) {
     let f = Frame::new(n);
@@ -96,7 +158,12 @@ pub fn eval(m: &Material, n: Vec3, wo: Vec3, wi: Vec3, front: bool) -> (Vec3, f3
     if o.z <= 0.0 {
         return (Vec3::ZERO, 0.0);
     }
-    eval_local(m, o, i, relative_eta(m.params.y, front))
+    let eta = relative_eta(m.params.y, front);
+    let (c, ca) = coat(m, front);
+    if c > 0.0 {
+        return eval_coated(m, o, i, eta, c, ca);
+    }
+    eval_local(m, o, i, eta)
 }
 
 /// Picks a lobe with `u3`, draws a direction from it
@@ -110,7 +177,22 @@ pub fn sample(m: &Material, n: Vec3, wo: Vec3, front: bool, u1: f32, u2: f32, u3
         return BsdfSample::NONE;
     }
     let a = alpha(m);
-    let (p_spec, p_diff, p_through) = lobe_probabilities(m, o, eta);
+    let ((p_spec, p_diff, p_through), base_sum) = lobes(m, o, eta);
+    let (c, ca) = coat(m, front);
+    let mut u3 = u3;
+    if c > 0.0 {
+        // The coat with its probability, else the base with u3 rescaled to [0, 1).
+        let (_, p_coat) = coat_split(c, o, base_sum);
+        if u3 < p_coat {
+            let h = ggx_sample_visible(ca, o, u1, u2);
+            let i = h * (2.0 * dot(o, h)) - o;
+            if i.z <= 0.0 {
+                return BsdfSample::NONE;
+            }
+            return weighed(f, eval_coated(m, o, i, eta, c, ca), i);
+        }
+        u3 = (u3 - p_coat) / (1.0 - p_coat);
+    }
     if p_spec + p_diff + p_through <= 0.0 {
         return BsdfSample::NONE;
     }
@@ -142,7 +224,15 @@ pub fn sample(m: &Material, n: Vec3, wo: Vec3, front: bool, u1: f32, u2: f32, u3
     if i.z == 0.0 {
         return BsdfSample::NONE;
     }
-    let (value, pdf) = eval_local(m, o, i, eta);
+    if c > 0.0 {
+        return weighed(f, eval_coated(m, o, i, eta, c, ca), i);
+    }
+    weighed(f, eval_local(m, o, i, eta), i)
+}
+
+/// The sample of local direction `i` given the whole model's value and pdf there.
+#[inline]
+fn weighed(f: Frame, (value, pdf): (Vec3, f32), i: Vec3) -> BsdfSample {
     if pdf <= 0.0 {
         return BsdfSample::NONE;
     }

@@ -3,7 +3,7 @@
 //! `Material` each one becomes.
 use super::{vec3_of, Albedo, Color};
 use crate::scene::obj::DEFAULT_ALBEDO;
-use crate::scene::{conductor, dielectric, diffuse, plastic, principled, Principled};
+use crate::scene::{clearcoat, conductor, dielectric, diffuse, plastic, principled, Principled};
 use serde::{Deserialize, Serialize};
 use shared::glam::Vec3;
 use shared::layout::Material;
@@ -58,6 +58,12 @@ pub struct MaterialSection {
     /// Principled: the fraction of the dielectric base that refracts, 0..=1 (default 0).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub transmission: Option<Unit>,
+    /// Principled: a clear coat's strength, 0..=1 (default 0: none; KHR_materials_clearcoat).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub clearcoat: Option<Unit>,
+    /// Principled: the clear coat's perceptual roughness, 0..=1 (default 0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub clearcoat_roughness: Option<Unit>,
 }
 
 /// A material table as written, before the keys are checked against its type.
@@ -79,6 +85,8 @@ pub struct RawMaterial {
     metallic: Option<Unit>,
     roughness: Option<Unit>,
     transmission: Option<Unit>,
+    clearcoat: Option<Unit>,
+    clearcoat_roughness: Option<Unit>,
 }
 
 impl MaterialKind {
@@ -89,9 +97,16 @@ impl MaterialKind {
             MaterialKind::Conductor => &["metal", "eta", "k", "alpha"],
             MaterialKind::Dielectric => &["ior", "alpha"],
             MaterialKind::Plastic => &["albedo", "albedo_texture", "ior", "alpha"],
-            MaterialKind::Principled => {
-                &["base_color", "base_color_texture", "metallic", "roughness", "transmission", "ior"]
-            }
+            MaterialKind::Principled => &[
+                "base_color",
+                "base_color_texture",
+                "metallic",
+                "roughness",
+                "transmission",
+                "ior",
+                "clearcoat",
+                "clearcoat_roughness",
+            ],
         }
     }
 }
@@ -112,6 +127,8 @@ impl TryFrom<RawMaterial> for MaterialSection {
             ("metallic", r.metallic.is_some()),
             ("roughness", r.roughness.is_some()),
             ("transmission", r.transmission.is_some()),
+            ("clearcoat", r.clearcoat.is_some()),
+            ("clearcoat_roughness", r.clearcoat_roughness.is_some()),
         ];
         let allowed = r.kind.keys();
         if let Some((key, _)) = given.iter().find(|(key, on)| *on && !allowed.contains(key)) {
@@ -157,6 +174,8 @@ impl TryFrom<RawMaterial> for MaterialSection {
             metallic: r.metallic,
             roughness: r.roughness,
             transmission: r.transmission,
+            clearcoat: r.clearcoat,
+            clearcoat_roughness: r.clearcoat_roughness,
         })
     }
 }
@@ -300,15 +319,19 @@ pub(super) fn scene_material(m: &MaterialSection) -> Material {
             m.alpha.map_or(0.0, |a| a.0 as f32),
             emission,
         ),
-        MaterialKind::Principled => principled(
-            &Principled {
-                base_color: m.base_color.map_or(Vec3::splat(0.8), |a| vec3_of(a.0)),
-                metallic: m.metallic.map_or(0.0, |v| v.0 as f32),
-                roughness: m.roughness.map_or(0.5, |v| v.0 as f32),
-                transmission: m.transmission.map_or(0.0, |v| v.0 as f32),
-                ior: m.ior.map_or(DEFAULT_IOR, |i| i.0 as f32),
-            },
-            emission,
+        MaterialKind::Principled => clearcoat(
+            principled(
+                &Principled {
+                    base_color: m.base_color.map_or(Vec3::splat(0.8), |a| vec3_of(a.0)),
+                    metallic: m.metallic.map_or(0.0, |v| v.0 as f32),
+                    roughness: m.roughness.map_or(0.5, |v| v.0 as f32),
+                    transmission: m.transmission.map_or(0.0, |v| v.0 as f32),
+                    ior: m.ior.map_or(DEFAULT_IOR, |i| i.0 as f32),
+                },
+                emission,
+            ),
+            m.clearcoat.map_or(0.0, |v| v.0 as f32),
+            m.clearcoat_roughness.map_or(0.0, |v| v.0 as f32),
         ),
     }
 }

@@ -56,7 +56,7 @@ pub(super) fn image_source<'a>(
 #[allow(clippy::too_many_arguments)]
 pub(super) fn material(
     path: &Path,
-    _document: &::gltf::Document,
+    document: &::gltf::Document,
     buffers: &[Vec<u8>],
     files: &dyn Files,
     m: &::gltf::Material,
@@ -152,21 +152,7 @@ pub(super) fn material(
                 "{p}: {label}: {key} reads TEXCOORD_{set}; kdtrace reads TEXCOORD_0 for every texture"
             ));
         }
-        let texture = info.texture();
-        let sampler = texture.sampler();
-        use ::gltf::texture::WrappingMode as W;
-        let (s, t) = (sampler.wrap_s(), sampler.wrap_t());
-        let clamp = s == W::ClampToEdge && t == W::ClampToEdge;
-        if !clamp && (s != W::Repeat || t != W::Repeat) {
-            notes.insert(format!(
-                "{p}: {label}: {key}: sampler wrapping {s:?}/{t:?} is rendered as Repeat (kdtrace wraps both axes alike, \
-                 repeat or clamp)"
-            ));
-        }
-        let image = texture.source();
-        let (name, bytes) = image_source(path, buffers, files, &image);
-        let wanted_by = format!("{p}: {label}: {key}");
-        mat.textures[*slot] = textures.load_bytes(&name, bytes, *kind, clamp, &wanted_by)?;
+        mat.textures[*slot] = load_texture(path, buffers, files, &info.texture(), label, key, *kind, textures, notes)?;
     }
     if let Some(alpha) = constant_alpha {
         let white = || {
@@ -207,6 +193,40 @@ pub(super) fn material(
     if transmission.as_ref().is_some_and(|t| t.transmission_texture().is_some()) {
         notes.insert(format!("{p}: {label}: transmissionTexture ignored (the factor is used)"));
     }
+    if let Some(coat) = m.extension_value("KHR_materials_clearcoat") {
+        let factor = |key: &str| -> Result<f32> {
+            match coat.get(key) {
+                None => Ok(0.0),
+                Some(v) => match v.as_f64() {
+                    Some(x) => check(&format!("KHR_materials_clearcoat: {key}"), x as f32, 0.0..=1.0),
+                    None => bail!("{p}: {label}: KHR_materials_clearcoat: {key} is not a number: {v}"),
+                },
+            }
+        };
+        let strength = factor("clearcoatFactor")?;
+        mat = clearcoat(mat, strength, factor("clearcoatRoughnessFactor")?);
+        // clearcoatTexture's R channel scales the factor (at TEXCOORD_0, with the material's
+        // texture transform: kdtrace has one set of coordinates per triangle).
+        if let Some(info) = coat.get("clearcoatTexture") {
+            let key = "KHR_materials_clearcoat: clearcoatTexture";
+            let index = info.get("index").and_then(|i| i.as_u64());
+            let texture = index.and_then(|i| document.textures().nth(i as usize));
+            let Some(texture) = texture else {
+                bail!("{p}: {label}: {key}: no texture {:?} in the file", info.get("index"));
+            };
+            if info.get("texCoord").and_then(|c| c.as_u64()).is_some_and(|c| c != 0) {
+                notes.insert(format!("{p}: {label}: {key} reads another TEXCOORD; kdtrace reads TEXCOORD_0"));
+            }
+            let kind = Kind::ChannelTimes(0, strength.to_bits());
+            mat.textures[TEXTURE_CLEARCOAT] =
+                load_texture(path, buffers, files, &texture, label, key, kind, textures, notes)?;
+        }
+        for key in ["clearcoatRoughnessTexture", "clearcoatNormalTexture"] {
+            if coat.get(key).is_some() {
+                notes.insert(format!("{p}: {label}: KHR_materials_clearcoat: {key} ignored (the factor is used)"));
+            }
+        }
+    }
     if let Some(volume) = m.volume() {
         mat.k = absorption(volume.attenuation_color(), volume.attenuation_distance()).extend(0.0);
         if volume.thickness_texture().is_some() {
@@ -216,6 +236,36 @@ pub(super) fn material(
         }
     }
     Ok(MaterialOut { material: mat, uv, invisible })
+}
+
+/// Loads `texture` for material `label`'s `key`, read as `kind`; returns its slot value. A wrap
+/// mode kdtrace does not have is noted.
+#[allow(clippy::too_many_arguments)]
+fn load_texture(
+    path: &Path,
+    buffers: &[Vec<u8>],
+    files: &dyn Files,
+    texture: &::gltf::Texture,
+    label: &str,
+    key: &str,
+    kind: Kind,
+    textures: &mut TextureSet,
+    notes: &mut BTreeSet<String>,
+) -> Result<u32> {
+    let p = path.display();
+    let sampler = texture.sampler();
+    use ::gltf::texture::WrappingMode as W;
+    let (s, t) = (sampler.wrap_s(), sampler.wrap_t());
+    let clamp = s == W::ClampToEdge && t == W::ClampToEdge;
+    if !clamp && (s != W::Repeat || t != W::Repeat) {
+        notes.insert(format!(
+            "{p}: {label}: {key}: sampler wrapping {s:?}/{t:?} is rendered as Repeat (kdtrace wraps both axes alike, \
+             repeat or clamp)"
+        ));
+    }
+    let (name, bytes) = image_source(path, buffers, files, &texture.source());
+    let wanted_by = format!("{p}: {label}: {key}");
+    textures.load_bytes(&name, bytes, kind, clamp, &wanted_by)
 }
 
 /// KHR_materials_volume's absorption coefficient per unit length: light that travels

@@ -226,6 +226,69 @@ fn a_textured_quad_is_upright_in_every_primitive_mode_and_transforms() {
     }
 }
 
+/// KHR_mesh_quantization: the textured quad with its positions as normalised i16 (±32767 for ±1)
+/// or as plain i16 (±1), and its texture coordinates as normalised u16, renders the same bits as
+/// with f32 attributes; the extension may be required.
+#[test]
+fn quantized_attributes_render_as_floats() {
+    let dir = folder("quantized");
+    let float = dir.join("float.gltf");
+    std::fs::write(&float, quad_gltf(r#""name": "q""#, "[0, 0, 3]", "", 4)).unwrap();
+    let l = load(&float, None);
+    let s = RenderSettings { aov: Aov::Albedo, ..settings(&l, small(16, 16, 4)) };
+    let want = bits(&cpu::render(&l.compiled, &s, &none).unwrap());
+    for (what, one, normalized) in [("normalised i16", 32767i16, true), ("plain i16", 1, false)] {
+        let mut buf = Vec::new();
+        for p in [[-1i16, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]] {
+            // Each position padded to 8 bytes: vertex strides are multiples of 4.
+            for c in p.into_iter().chain([0]) {
+                buf.extend((c * one).to_le_bytes());
+            }
+        }
+        for uv in [[0u16, 65535], [65535, 65535], [65535, 0], [0, 0]].iter().flatten() {
+            buf.extend(uv.to_le_bytes());
+        }
+        for i in [0u16, 1, 2, 0, 2, 3] {
+            buf.extend(i.to_le_bytes());
+        }
+        let file = quad_gltf(r#""name": "q""#, "[0, 0, 3]", "", 4)
+            .replace(
+                r#""extensionsUsed": ["KHR_texture_transform"],"#,
+                r#""extensionsUsed": ["KHR_mesh_quantization"], "extensionsRequired": ["KHR_mesh_quantization"],"#,
+            )
+            .replace(
+                r#"{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [-1, -1, 0], "max": [1, 1, 0]}"#,
+                &format!(
+                    r#"{{"bufferView": 0, "componentType": 5122, "normalized": {normalized}, "count": 4, "type": "VEC3", "min": [-{one}, -{one}, 0], "max": [{one}, {one}, 0]}}"#
+                ),
+            )
+            .replace(
+                r#"{"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC2"}"#,
+                r#"{"bufferView": 1, "componentType": 5123, "normalized": true, "count": 4, "type": "VEC2"}"#,
+            )
+            .replace(
+                r#"{"buffer": 0, "byteOffset": 0, "byteLength": 48}, {"buffer": 0, "byteOffset": 48, "byteLength": 32},"#,
+                r#"{"buffer": 0, "byteOffset": 0, "byteLength": 32, "byteStride": 8}, {"buffer": 0, "byteOffset": 32, "byteLength": 16},"#,
+            )
+            .replace(r#""byteOffset": 80"#, r#""byteOffset": 48"#);
+        let file = {
+            // The new buffer, in place of the f32 one.
+            let start = file.find("octet-stream;base64,").unwrap() + "octet-stream;base64,".len();
+            let data_uri_end = start + file[start..].find('"').unwrap();
+            let with_data = format!("{}{}{}", &file[..start], b64(&buf), &file[data_uri_end..]);
+            let len_at = with_data.find(r#""byteLength": "#).unwrap();
+            let len_end = len_at + with_data[len_at..].find(',').unwrap();
+            format!("{}\"byteLength\": {}{}", &with_data[..len_at], buf.len(), &with_data[len_end..])
+        };
+        assert!(file.contains("5122") && file.contains("5123, \"normalized\""), "{what}: the file was not rewritten");
+        let path = dir.join(format!("{}.gltf", what.replace(' ', "-")));
+        std::fs::write(&path, file).unwrap();
+        let l = load(&path, None);
+        let got = bits(&cpu::render(&l.compiled, &s, &none).unwrap());
+        assert!(got == want, "{what}: the quantized quad renders differently");
+    }
+}
+
 /// alphaMode MASK cuts out where the base colour's alpha is below alphaCutoff (the top left
 /// quadrant's alpha is 0.4): the camera sees through it (black albedo, a miss) at the default
 /// cutoff 0.5, not at 0.3; BLEND is rendered as MASK at 0.5.

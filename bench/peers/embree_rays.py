@@ -1,0 +1,71 @@
+"""Ray-casting throughput of Embree through Mitsuba 3 (`llvm_ad_rgb`), for the rays `kdtrace rays`
+casts: primary rays through the pixel centres of a pinhole camera, then cosine-distributed
+diffuse rays from their hits (closest hit both). The figure to hold `kdtrace rays` against.
+
+Usage (after bench/peers.sh has made the venv; DRJIT_LIBLLVM_PATH set as it sets it):
+  bench/.venv/bin/python bench/peers/embree_rays.py SCENE.obj EYE TARGET FOV [SIZE]
+  e.g. ... bench/results/scenes/sponza-sky.obj -11,3,0 11,5,0 55 512
+
+Mitsuba loads the OBJ as one mesh (Embree builds its BVH over it); the diffuse rays start 1e-4
+off each hit along its normal, turned toward the camera. Fastest of four timed runs of
+`ray_intersect_preliminary` each, `dr.eval` forcing the work; 2 threads as drjit picks them.
+The diffuse directions are not kdtrace's own random numbers: compare rates, not rays.
+"""
+import math
+import sys
+import time
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+
+
+def vec(s):
+    return np.array([float(x) for x in s.split(",")])
+
+
+def best_rate(fn, n, runs=4):
+    best = math.inf
+    for _ in range(runs):
+        t0 = time.perf_counter()
+        r = fn()
+        dr.eval(r)
+        dr.sync_thread()
+        best = min(best, time.perf_counter() - t0)
+    return n / best / 1e6
+
+
+def main():
+    mi.set_variant("llvm_ad_rgb")
+    obj, eye, target, fov = sys.argv[1], vec(sys.argv[2]), vec(sys.argv[3]), float(sys.argv[4])
+    size = int(sys.argv[5]) if len(sys.argv) > 5 else 512
+    scene = mi.load_dict({"type": "scene", "mesh": {"type": "obj", "filename": obj}})
+    forward = (target - eye) / np.linalg.norm(target - eye)
+    right = np.cross(forward, [0.0, 1.0, 0.0])
+    right /= np.linalg.norm(right)
+    up = np.cross(right, forward)
+    t = math.tan(math.radians(fov) / 2)
+    i, j = np.meshgrid(np.arange(size), np.arange(size))
+    x = ((i + 0.5) / size * 2 - 1) * t
+    y = (1 - (j + 0.5) / size * 2) * t
+    d = forward[None, None, :] + x[..., None] * right + y[..., None] * up
+    d = (d / np.linalg.norm(d, axis=-1, keepdims=True)).reshape(-1, 3).astype(np.float32)
+    n = size * size
+    origin = mi.Point3f(*[np.full(n, c, dtype=np.float32) for c in eye])
+    primary = mi.Ray3f(origin, mi.Vector3f(d[:, 0], d[:, 1], d[:, 2]))
+    rate_primary = best_rate(lambda: scene.ray_intersect_preliminary(primary), n)
+    si = scene.ray_intersect(primary)
+    rng = np.random.default_rng(1)
+    u = mi.Point2f(mi.Float(rng.random(n, dtype=np.float32)), mi.Float(rng.random(n, dtype=np.float32)))
+    normal = dr.select(dr.dot(si.n, primary.d) > 0, -si.n, si.n)
+    direction = mi.Frame3f(normal).to_world(mi.warp.square_to_cosine_hemisphere(u))
+    diffuse = mi.Ray3f(si.p + normal * 1e-4, direction)
+    dr.eval(diffuse)
+    hits = int(np.count_nonzero(np.array(si.is_valid())))
+    rate_diffuse = best_rate(lambda: scene.ray_intersect_preliminary(diffuse), n)
+    print(f"Embree via Mitsuba {mi.__version__}, {size}x{size}: primary {rate_primary:.2f} Mrays/s, "
+          f"diffuse {rate_diffuse:.2f} Mrays/s (from {hits} primary hits; misses cast too)")
+
+
+if __name__ == "__main__":
+    main()

@@ -10,7 +10,7 @@
 //! constants) not compiled either.
 //!
 //! `trace_sample_recorded` runs a sample with a `record::Recorder` that hears of each event (rays,
-//! hits, emission, light and BSDF samples, roulette); `trace_sample` and the renderers pass
+//! hits, emission, light and BSDF samples, roulette); the renderers (`render_samples`) pass
 //! `NoRecord`, whose hooks compile to nothing.
 use crate::camera::primary_direction;
 use crate::environment;
@@ -69,19 +69,8 @@ struct Path {
     bounce: u32,
 }
 
-/// Traces sample `sample` of pixel (px, py).
-///
-/// The loop has a single exit (`alive`) and the vertex work lives in `shade_vertex`, which
-/// returns early but contains no loop: a `break` out of this loop from inside inlined
-/// traversal code was miscompiled for whole subgroups on lavapipe (Mesa 22.3, LLVM 15), which
-/// lost every lane's sample when one lane left the loop that way.
-#[inline(always)]
-pub fn trace_sample(scene: &SceneView, p: &RenderParams, v: Variant, px: u32, py: u32, sample: u32) -> PathSample {
-    trace_sample_recorded(scene, p, v, px, py, sample, &mut NoRecord)
-}
-
-/// `trace_sample`, telling `rec` of every event on the path (`record::Recorder`): the same code,
-/// so the same values, whatever the recorder.
+/// Traces sample `sample` of pixel (px, py), telling `rec` of every event on the path
+/// (`record::Recorder`): the same code, so the same values, whatever the recorder.
 #[inline(always)]
 pub fn trace_sample_recorded<R: Recorder>(
     scene: &SceneView,
@@ -95,7 +84,13 @@ pub fn trace_sample_recorded<R: Recorder>(
     trace_path(scene, p, v, px, py, Sampler::new(p.sampler, py * p.width + px, sample, p.seed), rec)
 }
 
-/// `trace_sample_recorded` with the sample's sampler made by the caller.
+/// `trace_sample_recorded` with the sample's sampler made by the caller (`render_samples` makes
+/// it from the pixel's seeds, computed once).
+///
+/// The loop has a single exit (`alive`) and the vertex work lives in `shade_vertex`, which
+/// returns early but contains no loop: a `break` out of this loop from inside inlined
+/// traversal code was miscompiled for whole subgroups on lavapipe (Mesa 22.3, LLVM 15), which
+/// lost every lane's sample when one lane left the loop that way.
 #[inline(always)]
 fn trace_path<R: Recorder>(
     scene: &SceneView,
@@ -538,7 +533,7 @@ pub fn render_samples(
     let end = start + count;
     let pixel = y * p.width + x;
     #[cfg(not(target_arch = "spirv"))]
-    let seeds = crate::rng::PixelSeeds::new(pixel, p.seed);
+    let seeds = crate::rng::PixelSeeds::new(p.sampler, pixel, p.seed);
     while s < end {
         #[cfg(not(target_arch = "spirv"))]
         let rng = Sampler::with_seeds(p.sampler, pixel, s, p.seed, seeds);

@@ -85,9 +85,14 @@ pub struct PixelSeeds {
 
 #[cfg(not(target_arch = "spirv"))]
 impl PixelSeeds {
+    /// The seeds of pixel `pixel` under sampler `kind`; the independent sampler reads none, so
+    /// it gets zeros without the hashing.
     #[inline]
-    pub fn new(pixel: u32, seed: u32) -> Self {
+    pub fn new(kind: u32, pixel: u32, seed: u32) -> Self {
         let mut sets = [([0u32; 4], 0u32); SOBOL_SETS as usize];
+        if kind != SAMPLER_SOBOL {
+            return Self { sets };
+        }
         for (set, s) in sets.iter_mut().enumerate() {
             let seeds = sobol_seeds(pixel, set as u32, seed);
             *s = (seeds, crate::sobol::shuffle_zero(seeds));
@@ -107,12 +112,12 @@ impl Sampler {
     #[inline]
     pub fn new(kind: u32, pixel: u32, sample: u32, seed: u32) -> Self {
         #[cfg(not(target_arch = "spirv"))]
-        return Self::with_seeds(kind, pixel, sample, seed, PixelSeeds::new(pixel, seed));
+        return Self::with_seeds(kind, pixel, sample, seed, PixelSeeds::new(kind, pixel, seed));
         #[cfg(target_arch = "spirv")]
         return Self { kind, pixel, sample, seed, set: 0, reversed_sample: sample.reverse_bits() };
     }
 
-    /// `new` with the pixel's seeds computed beforehand (`PixelSeeds::new(pixel, seed)`).
+    /// `new` with the pixel's seeds computed beforehand (`PixelSeeds::new(kind, pixel, seed)`).
     #[cfg(not(target_arch = "spirv"))]
     #[inline]
     pub fn with_seeds(kind: u32, pixel: u32, sample: u32, seed: u32, seeds: PixelSeeds) -> Self {

@@ -115,10 +115,16 @@ fn alpha(m: &Material) -> f32 {
 /// f (without the cosine) and the pdf of `sample` for local directions; `o.z > 0`.
 #[inline]
 fn eval_local(m: &Material, o: Vec3, i: Vec3, eta: f32) -> (Vec3, f32) {
+    eval_base(m, o, i, eta, lobe_probabilities(m, o, eta))
+}
+
+/// `eval_local` given the lobes' probabilities at `o` (`lobe_probabilities`).
+#[inline]
+fn eval_base(m: &Material, o: Vec3, i: Vec3, eta: f32, probabilities: (f32, f32, f32)) -> (Vec3, f32) {
     let a = alpha(m);
     let base = xyz(m.albedo);
     let (metallic, transmission) = (m.params.z, m.params.w);
-    let (p_spec, p_diff, p_through) = lobe_probabilities(m, o, eta);
+    let (p_spec, p_diff, p_through) = probabilities;
     let f_n = fresnel_dielectric(o.z, eta).0;
     let entering = (1.0 - metallic) * (1.0 - f_n);
     if i.z > 0.0 {
@@ -137,11 +143,19 @@ fn eval_local(m: &Material, o: Vec3, i: Vec3, eta: f32) -> (Vec3, f32) {
     (base * (entering * transmission * value), p_through * pdf)
 }
 
-/// `eval_local` under the coat (`coat`, factor `c` > 0, α `ca`).
+/// `eval_local` under the coat (`coat`, factor `c` > 0, α `ca`), given the base's `lobes` at `o`.
 #[inline]
-fn eval_coated(m: &Material, o: Vec3, i: Vec3, eta: f32, c: f32, ca: f32) -> (Vec3, f32) {
-    let (base, base_pdf) = eval_local(m, o, i, eta);
-    let (_, base_sum) = lobes(m, o, eta);
+#[allow(clippy::too_many_arguments)]
+fn eval_coated(
+    m: &Material,
+    o: Vec3,
+    i: Vec3,
+    eta: f32,
+    c: f32,
+    ca: f32,
+    (probabilities, base_sum): ((f32, f32, f32), f32),
+) -> (Vec3, f32) {
+    let (base, base_pdf) = eval_base(m, o, i, eta, probabilities);
     let (share, p_coat) = coat_split(c, o, base_sum);
     let (value, pdf) = (base * share, base_pdf * (1.0 - p_coat));
     if i.z <= 0.0 {
@@ -161,7 +175,7 @@ pub fn eval(m: &Material, n: Vec3, wo: Vec3, wi: Vec3, front: bool) -> (Vec3, f3
     let eta = relative_eta(m.params.y, front);
     let (c, ca) = coat(m, front);
     if c > 0.0 {
-        return eval_coated(m, o, i, eta, c, ca);
+        return eval_coated(m, o, i, eta, c, ca, lobes(m, o, eta));
     }
     eval_local(m, o, i, eta)
 }
@@ -177,7 +191,8 @@ pub fn sample(m: &Material, n: Vec3, wo: Vec3, front: bool, u1: f32, u2: f32, u3
         return BsdfSample::NONE;
     }
     let a = alpha(m);
-    let ((p_spec, p_diff, p_through), base_sum) = lobes(m, o, eta);
+    let base_lobes = lobes(m, o, eta);
+    let ((p_spec, p_diff, p_through), base_sum) = base_lobes;
     let (c, ca) = coat(m, front);
     let mut u3 = u3;
     if c > 0.0 {
@@ -189,7 +204,7 @@ pub fn sample(m: &Material, n: Vec3, wo: Vec3, front: bool, u1: f32, u2: f32, u3
             if i.z <= 0.0 {
                 return BsdfSample::NONE;
             }
-            return weighed(f, eval_coated(m, o, i, eta, c, ca), i);
+            return weighed(f, eval_coated(m, o, i, eta, c, ca, base_lobes), i);
         }
         u3 = (u3 - p_coat) / (1.0 - p_coat);
     }
@@ -225,7 +240,7 @@ pub fn sample(m: &Material, n: Vec3, wo: Vec3, front: bool, u1: f32, u2: f32, u3
         return BsdfSample::NONE;
     }
     if c > 0.0 {
-        return weighed(f, eval_coated(m, o, i, eta, c, ca), i);
+        return weighed(f, eval_coated(m, o, i, eta, c, ca, base_lobes), i);
     }
     weighed(f, eval_local(m, o, i, eta), i)
 }

@@ -1,7 +1,8 @@
 //! The SAH tree on inputs built to break it: degenerate geometry (coplanar, flat on an axis,
 //! zero-area, a single triangle, 10^5 copies of one triangle) must give a valid, bounded tree
 //! quickly; rays lying exactly in split planes and rays starting on triangle edges must get
-//! exactly the brute-force hit.
+//! exactly the brute-force hit. The CPU path's wide BVH is held to the same on the same
+//! inputs: its depth within `wide_bvh::MAX_DEPTH`, its hits brute force's.
 #[path = "common/paths.rs"]
 mod paths;
 use kdtrace::{
@@ -80,6 +81,8 @@ fn traversal_matches_brute_force(what: &str, tris: &[Triangle], rays: usize) {
     )
     .unwrap();
     let c = compile(scene, BuildSettings::default());
+    let depth = c.wide_bvh().depth();
+    assert!(depth <= shared::wide_bvh::MAX_DEPTH, "{what}: wide BVH depth {depth}");
     let params = c.bounds_params();
     let view = c.view(&params);
     // Flat scenes get origins off their plane: every axis spans at least the largest extent.
@@ -100,7 +103,11 @@ fn traversal_matches_brute_force(what: &str, tris: &[Triangle], rays: usize) {
                 Vec3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0))
             };
             let b = intersect_brute_force(&view, o, d, f32::MAX);
-            for traversal in [shared::layout::TRAVERSAL_FULL_STACK, shared::layout::TRAVERSAL_SHORT_STACK] {
+            for traversal in [
+                shared::layout::TRAVERSAL_FULL_STACK,
+                shared::layout::TRAVERSAL_SHORT_STACK,
+                shared::layout::TRAVERSAL_WIDE_BVH,
+            ] {
                 let a = shared::raycast::closest(&view, traversal, o, d, f32::MAX).hit;
                 assert_eq!(
                     a.t.to_bits(),
@@ -115,7 +122,7 @@ fn traversal_matches_brute_force(what: &str, tris: &[Triangle], rays: usize) {
             b.is_hit() as usize
         })
         .sum();
-    eprintln!("{what}: {rays} rays, {hits} hits, both traversals equal to brute force");
+    eprintln!("{what}: {rays} rays, {hits} hits, the three traversals equal to brute force");
     assert!(hits > rays / 4, "{what}: too few hits ({hits})");
 }
 
@@ -147,6 +154,7 @@ fn all_triangles_coplanar_in_a_tilted_plane() {
         })
         .collect();
     build_checked("coplanar tilted", &tris);
+    traversal_matches_brute_force("coplanar tilted", &tris, 5_000);
 }
 
 #[test]
@@ -159,6 +167,7 @@ fn zero_area_triangles_points_and_lines() {
         tris.push(tri([x, 3.0, 0.25], [x, 5.0, 0.25], [x, 4.0, 0.25])); // a segment along y
     }
     build_checked("zero-area mixed in", &tris);
+    traversal_matches_brute_force("zero-area mixed in", &tris, 5_000);
 }
 
 #[test]

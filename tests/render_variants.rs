@@ -52,11 +52,19 @@ fn all_traversal_and_dispatch_variants_render_the_same_image() {
         &cpu::render(&c, &RenderSettings { traversal: Traversal::Short, ..base }, &no_progress).unwrap(),
         "CPU short stack",
     );
-    // `auto` takes the full stack on the CPU path (measured faster there).
+    // `auto` takes the wide BVH on the CPU path (measured faster there): another structure,
+    // the same hits.
     let auto = cpu::render(&c, &RenderSettings { traversal: Traversal::Auto, ..base }, &no_progress).unwrap();
-    assert_eq!(auto.traversal, Traversal::Full);
-    same(&reference, &auto, "CPU auto");
+    assert_eq!(auto.traversal, Traversal::Wide);
+    same(&reference, &auto, "CPU auto (wide BVH)");
+    same(
+        &reference,
+        &cpu::render(&c, &RenderSettings { traversal: Traversal::Wide, ..base }, &no_progress).unwrap(),
+        "CPU wide BVH",
+    );
     let g = gpu::Gpu::lavapipe().unwrap_or_else(|e| panic!("{e:#}"));
+    let wide = g.render(&c, &RenderSettings { traversal: Traversal::Wide, ..base }, &no_progress);
+    assert!(format!("{:#}", wide.unwrap_err()).contains("CPU path"), "a GPU has no wide BVH");
     for traversal in [Traversal::Full, Traversal::Short, Traversal::Auto] {
         for dispatch in [Dispatch::Plain, Dispatch::Persistent] {
             let img = g.render(&c, &RenderSettings { traversal, dispatch, ..base }, &no_progress).unwrap();
@@ -116,7 +124,7 @@ fn cost_aov_counts_the_camera_ray_work_on_both_devices() {
         match traversal {
             Traversal::Full => assert_eq!(restarts, 0.0, "the full stack never restarts"),
             Traversal::Short => assert!(restarts > 0.0, "a 4-entry stack on a 7k-triangle tree restarts somewhere"),
-            Traversal::Auto => unreachable!(),
+            Traversal::Auto | Traversal::Wide => unreachable!(),
         }
     }
 }

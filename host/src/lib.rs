@@ -7,6 +7,7 @@
 // The k-d builder compares sixteen events at once (`kdbuild::sah`), as the shared crate's leaf
 // test tests eight triangles; the pinned nightly has `core::simd`.
 #![feature(portable_simd)]
+pub mod bvh;
 pub mod cli;
 pub mod debug;
 pub mod files;

@@ -159,9 +159,20 @@ pub(crate) struct RayStart {
 #[cfg_attr(not(target_arch = "spirv"), inline(always))]
 #[cfg_attr(target_arch = "spirv", inline)]
 pub(crate) fn ray_start(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32) -> Option<RayStart> {
+    if scene.nodes.is_empty() {
+        return None;
+    }
+    ray_in_box(scene, origin, dir, t_max)
+}
+
+/// `ray_start` for any tree: `None` for a non-finite origin or direction, a zero direction, or a
+/// ray that misses the scene box within (0, t_max).
+#[cfg_attr(not(target_arch = "spirv"), inline(always))]
+#[cfg_attr(target_arch = "spirv", inline)]
+pub(crate) fn ray_in_box(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32) -> Option<RayStart> {
     let dir = flush_denormals(dir);
     let zero_dir = (dir.x == 0.0) & (dir.y == 0.0) & (dir.z == 0.0);
-    if !is_finite3(origin) | !is_finite3(dir) | zero_dir | scene.nodes.is_empty() {
+    if !is_finite3(origin) | !is_finite3(dir) | zero_dir {
         return None;
     }
     let inv = safe_reciprocal(dir);
@@ -260,14 +271,33 @@ fn test_blocks<const MASKS: bool>(
     let end = start + n.count();
     *tests += n.count();
     // An empty leaf's start need not be aligned (only non-empty runs are): it tests nothing.
-    let mut k = start / BLOCK_WIDTH;
+    let k = start / BLOCK_WIDTH;
     let past = if start == end { k } else { end.div_ceil(BLOCK_WIDTH) };
+    test_block_run::<MASKS>(scene, scene.blocks, scene.indices, k, past, shear, best, any_hit)
+}
+
+/// Tests blocks `k .. past` of `blocks` (lane `l` of block `b` is triangle `indices[8b + l]`),
+/// narrowing `best`; the leaf test of both the k-d tree and the CPU's wide BVH (`wide_bvh`).
+/// Returns whether an any-hit query is answered.
+#[cfg(not(target_arch = "spirv"))]
+#[inline(always)]
+#[allow(clippy::too_many_arguments)] // the run, the ray and the result
+pub(crate) fn test_block_run<const MASKS: bool>(
+    scene: &SceneView,
+    blocks: &[crate::layout::TriBlock],
+    indices: &[u32],
+    mut k: u32,
+    past: u32,
+    shear: &RayShear,
+    best: &mut Hit,
+    any_hit: bool,
+) -> bool {
     let mut done = false;
     if !MASKS | !scene.alpha_masks {
         // No masks: one block test per block (the loop below, without its retests).
         while (k < past) & !done {
-            if let Some((lane, h)) = shear.intersect_block(&scene.blocks[k as usize], ALL_LANES, 0.0, best.t, any_hit) {
-                let id = scene.indices[(k * BLOCK_WIDTH + lane) as usize];
+            if let Some((lane, h)) = shear.intersect_block(&blocks[k as usize], ALL_LANES, 0.0, best.t, any_hit) {
+                let id = indices[(k * BLOCK_WIDTH + lane) as usize];
                 *best = Hit { t: h.t, triangle: id, u: h.u, v: h.v, w: h.w, nodes: 0, tests: 0 };
                 done = any_hit;
             }
@@ -282,9 +312,9 @@ fn test_blocks<const MASKS: bool>(
         // the next closest (or next) lane, as `test_leaf_each` finds it.
         let mut lanes = ALL_LANES;
         while lanes != 0 {
-            lanes = match shear.intersect_block(&scene.blocks[k as usize], lanes, 0.0, best.t, any_hit) {
+            lanes = match shear.intersect_block(&blocks[k as usize], lanes, 0.0, best.t, any_hit) {
                 Some((lane, h)) => {
-                    let id = scene.indices[(k * BLOCK_WIDTH + lane) as usize];
+                    let id = indices[(k * BLOCK_WIDTH + lane) as usize];
                     if cut_out(scene, id, h.u, h.v, h.w) {
                         lanes & !(1 << lane)
                     } else {

@@ -325,7 +325,7 @@ pub struct RenderParams {
     /// 1 / width and 1 / height, computed once on the host so both devices multiply.
     pub inv_width: f32,
     pub inv_height: f32,
-    /// `TRAVERSAL_FULL_STACK` or `TRAVERSAL_SHORT_STACK`.
+    /// `TRAVERSAL_FULL_STACK`, `TRAVERSAL_SHORT_STACK` or (the CPU only) `TRAVERSAL_WIDE_BVH`.
     pub traversal: u32,
     /// What the image holds: `AOV_RADIANCE` or `AOV_COST`.
     pub aov: u32,
@@ -344,6 +344,10 @@ pub struct RenderParams {
 pub const TRAVERSAL_FULL_STACK: u32 = 0;
 /// k-d traversal with a `short_stack::SHORT_STACK`-entry stack and restart (`short_stack`).
 pub const TRAVERSAL_SHORT_STACK: u32 = 1;
+/// The CPU's eight-wide BVH (`wide_bvh`); a GPU never gets it.
+pub const TRAVERSAL_WIDE_BVH: u32 = 2;
+/// `RayQuery::flags`: traverse the CPU's eight-wide BVH (`TRAVERSAL_WIDE_BVH`).
+pub const RAY_WIDE_BVH: u32 = 8;
 
 /// The image is radiance.
 pub const AOV_RADIANCE: u32 = 0;

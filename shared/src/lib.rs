@@ -37,3 +37,5 @@ pub mod texture;
 pub mod triangle;
 pub mod trig;
 pub mod vecmath;
+#[cfg(not(target_arch = "spirv"))]
+pub mod wide_bvh;

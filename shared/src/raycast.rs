@@ -41,6 +41,11 @@ pub fn query_recorded<R: Recorder>(
     any_hit: bool,
     rec: &mut R,
 ) -> Traced {
+    #[cfg(not(target_arch = "spirv"))]
+    if traversal == crate::layout::TRAVERSAL_WIDE_BVH {
+        // The wide BVH's nodes are not the k-d tree's: `rec` hears of none.
+        return Traced { hit: crate::wide_bvh::traverse(scene, origin, dir, t_max, any_hit), restarts: 0 };
+    }
     if traversal == TRAVERSAL_SHORT_STACK {
         let s = short_stack::traverse::<SHORT_STACK, R>(scene, origin, dir, t_max, any_hit, rec);
         Traced { hit: s.hit, restarts: s.restarts }
@@ -69,6 +74,9 @@ pub fn cast_ray(scene: &SceneView, q: &RayQuery) -> RayResult {
     let scene = &SceneView { alpha_masks: masks, ..*scene };
     let (o, d) = (xyz(q.origin), xyz(q.dir));
     let traversal = if (q.flags & RAY_SHORT_STACK) != 0 { TRAVERSAL_SHORT_STACK } else { 0 };
+    #[cfg(not(target_arch = "spirv"))]
+    let traversal =
+        if (q.flags & crate::layout::RAY_WIDE_BVH) != 0 { crate::layout::TRAVERSAL_WIDE_BVH } else { traversal };
     let r = query(scene, traversal, o, d, q.t_max, (q.flags & RAY_ANY_HIT) != 0);
     RayResult {
         t: r.hit.t,

@@ -28,6 +28,10 @@ pub struct SceneView<'a> {
     pub alpha_masks: bool,
     pub bounds_min: Vec3,
     pub bounds_max: Vec3,
+    /// The CPU's eight-wide BVH over the same triangles (`wide_bvh`); empty unless the host
+    /// built one.
+    #[cfg(not(target_arch = "spirv"))]
+    pub wide: crate::wide_bvh::WideView<'a>,
 }
 
 impl<'a> SceneView<'a> {
@@ -60,6 +64,8 @@ impl<'a> SceneView<'a> {
             alpha_masks: true,
             bounds_min: xyz(params.bounds_min),
             bounds_max: xyz(params.bounds_max),
+            #[cfg(not(target_arch = "spirv"))]
+            wide: crate::wide_bvh::WideView::default(),
         }
     }
 }

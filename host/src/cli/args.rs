@@ -53,8 +53,9 @@ pub struct ImageArgs {
     /// Print one JSON line to stdout instead of a progress bar.
     #[arg(long)]
     pub json: bool,
-    /// k-d traversal: a short stack with restart, a stack as deep as the tree, or the faster one
-    /// for the device (full on CPUs and lavapipe, short on GPUs).
+    /// Traversal: the k-d tree with a short stack with restart or a stack as deep as the tree,
+    /// the CPU path's eight-wide BVH, or the fastest for the device (wide on the CPU path, full
+    /// on lavapipe, short on GPUs).
     #[arg(long, value_enum, default_value_t)]
     pub traversal: Traversal,
     /// GPU work distribution: one invocation per pixel, or persistent threads.

@@ -54,7 +54,10 @@ pub fn run(r: RaysArgs) -> Result<ExitCode> {
     let adapter = g
         .as_ref()
         .map_or_else(|| format!("cpu ({} threads)", rayon::current_num_threads()), |g| g.adapter.name.clone());
-    let traversal = s.traversal.resolve(g.as_ref().is_none_or(|g| g.is_cpu()));
+    let traversal = match &g {
+        Some(g) => s.traversal.for_adapter(g.is_cpu())?,
+        None => s.traversal.for_cpu_path(),
+    };
     // K_I prices a leaf test of `leaf_block` triangles; the counts are of triangles.
     let per_triangle = build.intersection_cost as f64 / build.leaf_block.max(1) as f64;
     let mut primary_rate = None;
@@ -80,7 +83,7 @@ pub fn run(r: RaysArgs) -> Result<ExitCode> {
         } else {
             println!(
                 "{:?}: {} rays ({} hits) in {:.4} s: {:.2} Mrays/s; per ray {:.1} nodes, {:.1} tests, {:.3} \
-                 restarts; ideal {ideal:.2} Mrays/s, measured/ideal {:.2} ({adapter}, {traversal:?} stack)",
+                 restarts; ideal {ideal:.2} Mrays/s, measured/ideal {:.2} ({adapter}, {traversal:?})",
                 kind,
                 t.rays,
                 t.hits,

@@ -98,7 +98,7 @@ pub fn variant(bits: u32) -> VariantFn {
 /// until the budget is spent, so every pixel has the same number of samples (unbiased).
 pub fn render(c: &Compiled, s: &RenderSettings, progress: Progress) -> Result<Rendered> {
     s.check()?;
-    let s = &RenderSettings { traversal: s.traversal.resolve(true), ..*s };
+    let s = &RenderSettings { traversal: s.traversal.for_cpu_path(), ..*s };
     let (w, h) = (s.width, s.height);
     let n = (w * h) as usize;
     if let Some(a) = s.adaptive {
@@ -180,7 +180,7 @@ impl<'a> CpuSums<'a> {
         if s.adaptive.is_some() {
             bail!("a progressive render adds the same samples to every pixel: adaptive sampling does not apply");
         }
-        let s = RenderSettings { traversal: s.traversal.resolve(true), ..*s };
+        let s = RenderSettings { traversal: s.traversal.for_cpu_path(), ..*s };
         let n = s.width as usize * s.height as usize;
         Ok(Self {
             c,

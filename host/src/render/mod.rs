@@ -27,6 +27,7 @@ use shared::glam::{DVec3, Vec4};
 use shared::layout::{
     Light, RenderParams, TriBlock, Triangle, AOV_ALBEDO, AOV_COST, AOV_NORMAL, AOV_RADIANCE, BLOCK_WIDTH,
     LIGHT_ENVIRONMENT_BIT, LIGHT_NOT_TRIANGLE, NO_ENVIRONMENT_MAP, TRAVERSAL_FULL_STACK, TRAVERSAL_SHORT_STACK,
+    TRAVERSAL_WIDE_BVH,
 };
 use shared::numerics::MAX_EXTENT;
 use shared::scene::SceneView;
@@ -55,6 +56,9 @@ pub struct Compiled {
     /// Whether a material that triangles use has an alpha mask: the CPU's traversals test hits
     /// against masks only then (`SceneView::alpha_masks`).
     pub alpha_masks: bool,
+    /// The CPU path's eight-wide BVH over the same triangles (`crate::bvh`), built when a view
+    /// for `TRAVERSAL_WIDE_BVH` first asks for it (a GPU render never does).
+    pub wide: std::sync::OnceLock<crate::bvh::WideBvh>,
 }
 
 impl Compiled {
@@ -78,6 +82,7 @@ impl Compiled {
             blocks,
             origin: DVec3::ZERO,
             alpha_masks,
+            wide: std::sync::OnceLock::new(),
         };
         c.prepare_emitters();
         c
@@ -185,6 +190,7 @@ impl Compiled {
             traversal: match s.traversal {
                 Traversal::Full | Traversal::Auto => TRAVERSAL_FULL_STACK,
                 Traversal::Short => TRAVERSAL_SHORT_STACK,
+                Traversal::Wide => TRAVERSAL_WIDE_BVH,
             },
             aov: match s.aov {
                 Aov::Radiance => AOV_RADIANCE,
@@ -209,6 +215,11 @@ impl Compiled {
         }
     }
 
+    /// The wide BVH, built on the first call.
+    pub fn wide_bvh(&self) -> &crate::bvh::WideBvh {
+        self.wide.get_or_init(|| crate::bvh::build(&self.scene.triangles))
+    }
+
     pub fn view<'a>(&'a self, params: &RenderParams) -> SceneView<'a> {
         let mut view = SceneView::new(
             params,
@@ -223,6 +234,13 @@ impl Compiled {
             &self.textures,
         );
         view.alpha_masks = self.alpha_masks;
+        if params.traversal == TRAVERSAL_WIDE_BVH {
+            self.wide_bvh();
+        }
+        // Ray batches name their traversal per ray: a built BVH is always in the view.
+        if let Some(wide) = self.wide.get() {
+            view.wide = wide.view();
+        }
         view
     }
 }

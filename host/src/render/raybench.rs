@@ -16,7 +16,7 @@ use serde::Serialize;
 use shared::camera::primary_direction;
 use shared::features::Variant;
 use shared::glam::Vec3;
-use shared::layout::{RayQuery, RayResult, NO_HIT, RAY_ALPHA_MASKS, RAY_ANY_HIT, RAY_SHORT_STACK};
+use shared::layout::{RayQuery, RayResult, NO_HIT, RAY_ALPHA_MASKS, RAY_ANY_HIT, RAY_SHORT_STACK, RAY_WIDE_BVH};
 use shared::material::sample as sample_bsdf;
 use shared::numerics::offset_ray_origin;
 use shared::raycast::cast_ray;
@@ -40,7 +40,14 @@ pub const AO_LENGTH: f32 = 0.1;
 /// start at the camera rays' hits (offset off the surface, on the camera's side).
 pub fn make_rays(c: &Compiled, s: &RenderSettings, kind: RayKind, traversal: Traversal) -> Result<Vec<RayQuery>> {
     let p = c.params(s, 0, 1)?;
-    let flags = if traversal == Traversal::Short { RAY_SHORT_STACK } else { 0 };
+    let flags = match traversal {
+        Traversal::Short => RAY_SHORT_STACK,
+        Traversal::Wide => {
+            c.wide_bvh();
+            RAY_WIDE_BVH
+        }
+        _ => 0,
+    };
     let flags = flags | if c.alpha_masks { RAY_ALPHA_MASKS } else { 0 };
     let eye = crate::scene::local_frame::point_to_local(s.camera.eye, c.origin);
     let camera: Vec<RayQuery> = (0..s.height)

@@ -28,29 +28,50 @@ pub const MAX_SPP: u32 = 1 << 20;
 /// Most indirect bounces accepted.
 pub const MAX_BOUNCES: u32 = 1024;
 
-/// Which k-d traversal renders (both return identical hits; they differ in speed).
+/// Which acceleration structure and traversal renders: the k-d tree with a full or a short
+/// stack, or on the CPU path the eight-wide BVH. All return the hit that testing every triangle
+/// returns; they differ in speed, and the traversal statistics count their own nodes.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Traversal {
-    /// The faster one for the device: the full stack on CPUs (the CPU path, where the two are
-    /// within a few per cent, and lavapipe, where the full stack is faster; BENCHMARKS.md), the
-    /// short stack on GPUs, whose threads hold far less fast memory.
+    /// The fastest for the device: the wide BVH on the CPU path, the k-d tree's full stack on
+    /// lavapipe (faster there than the short one; BENCHMARKS.md), its short stack on GPUs, whose
+    /// threads hold far less fast memory.
     #[default]
     Auto,
     /// A stack of `shared::short_stack::SHORT_STACK` entries with restart (Horn et al. 2007).
     Short,
     /// A stack as deep as the tree.
     Full,
+    /// The CPU path's eight-wide BVH instead of the k-d tree (`shared::wide_bvh`).
+    Wide,
 }
 
 impl Traversal {
-    /// `Auto` made concrete for a device that is (`cpu`) or is not a CPU.
+    /// `Auto` made concrete for the k-d tree on an adapter that is (`cpu`) or is not a CPU
+    /// (and for a CPU-path tool that follows k-d nodes: the debugger).
     pub fn resolve(self, cpu: bool) -> Traversal {
         match self {
             Traversal::Auto if cpu => Traversal::Full,
             Traversal::Auto => Traversal::Short,
             t => t,
         }
+    }
+
+    /// `Auto` made concrete for the CPU path: the wide BVH.
+    pub fn for_cpu_path(self) -> Traversal {
+        match self {
+            Traversal::Auto => Traversal::Wide,
+            t => t,
+        }
+    }
+
+    /// `Auto` made concrete for a wgpu adapter, which has no wide BVH.
+    pub fn for_adapter(self, cpu: bool) -> anyhow::Result<Traversal> {
+        if self == Traversal::Wide {
+            anyhow::bail!("--traversal wide is the CPU path's BVH; a GPU traverses the k-d tree (full or short)");
+        }
+        Ok(self.resolve(cpu))
     }
 }
 

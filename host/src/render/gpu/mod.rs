@@ -398,7 +398,7 @@ impl Gpu {
 
     pub fn render(&self, c: &Compiled, s: &RenderSettings, progress: Progress) -> Result<Rendered> {
         s.check()?;
-        let s = &RenderSettings { traversal: s.traversal.resolve(self.is_cpu()), ..*s };
+        let s = &RenderSettings { traversal: s.traversal.for_adapter(self.is_cpu())?, ..*s };
         if let Some(a) = s.adaptive {
             let b = self.allocate(c, s)?;
             let mut params = c.params(s, 0, 0)?;
@@ -461,7 +461,7 @@ impl Gpu {
         if s.adaptive.is_some() {
             bail!("a progressive render adds the same samples to every pixel: adaptive sampling does not apply");
         }
-        let s = RenderSettings { traversal: s.traversal.resolve(self.is_cpu()), ..*s };
+        let s = RenderSettings { traversal: s.traversal.for_adapter(self.is_cpu())?, ..*s };
         let buffers = self.allocate(c, &s)?;
         let pixels = buffers.pixels;
         // Work per invocation and dispatch, bounded on CPU adapters (see `CPU_ADAPTER_*`).

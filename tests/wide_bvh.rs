@@ -1,0 +1,193 @@
+//! The CPU's eight-wide BVH must return what testing every triangle returns, as the k-d tree
+//! does: the same distance bit for bit (the same triangle unless two are hit at that very
+//! distance), and any-hit queries must agree with it, for unbounded and for short rays.
+#[path = "common/paths.rs"]
+mod paths;
+use kdtrace::{
+    compile,
+    kdbuild::BuildSettings,
+    render::Compiled,
+    scene::{obj, procedural},
+};
+use paths::mesh;
+use rand::{Rng, SeedableRng};
+use rand_pcg::Pcg64;
+use rayon::prelude::*;
+use shared::{
+    glam::Vec3,
+    kdtree::{flush_denormals, intersect_brute_force},
+    triangle::RayShear,
+    vecmath::xyz,
+    wide_bvh::{self, MAX_DEPTH},
+};
+
+/// The scene with its wide BVH.
+fn view(c: &Compiled) -> shared::scene::SceneView<'_> {
+    c.wide_bvh();
+    c.view(&c.bounds_params())
+}
+
+/// Compares the wide BVH with brute force (and the k-d tree) on every ray, each with its own
+/// t_max; returns (rays, hits). Panics on the first mismatch.
+fn check_rays(c: &Compiled, rays: &[(Vec3, Vec3, f32)]) -> (usize, usize) {
+    let scene = view(c);
+    rays.par_iter()
+        .map(|&(o, d, t_max)| {
+            let wide = wide_bvh::traverse(&scene, o, d, t_max, false);
+            let brute = intersect_brute_force(&scene, o, d, t_max);
+            assert_eq!(
+                wide.t.to_bits(),
+                brute.t.to_bits(),
+                "ray o={o:?} d={d:?} t_max={t_max}: wide t={} (tri {}) brute t={} (tri {})",
+                wide.t,
+                wide.triangle,
+                brute.t,
+                brute.triangle
+            );
+            if wide.triangle != brute.triangle {
+                let shear = RayShear::new(o, flush_denormals(d));
+                let h = shear
+                    .intersect(&scene.triangles[wide.triangle as usize], 0.0, f32::MAX)
+                    .expect("the wide BVH returned a triangle the ray misses");
+                assert_eq!(h.t.to_bits(), brute.t.to_bits(), "ray o={o:?} d={d:?}: different triangles at different t");
+            }
+            let any = wide_bvh::traverse(&scene, o, d, t_max, true);
+            assert_eq!(any.is_hit(), brute.is_hit(), "any hit disagrees for o={o:?} d={d:?} t_max={t_max}");
+            if any.is_hit() {
+                assert!(any.t < t_max && any.t > 0.0);
+            }
+            brute.is_hit() as usize
+        })
+        .sum::<usize>()
+        .pipe(|hits| (rays.len(), hits))
+}
+
+trait Pipe: Sized {
+    fn pipe<R>(self, f: impl FnOnce(Self) -> R) -> R {
+        f(self)
+    }
+}
+impl<T> Pipe for T {}
+
+fn random_unit(rng: &mut Pcg64) -> Vec3 {
+    loop {
+        let v = Vec3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
+        let l = v.length();
+        if l > 1e-3 && l <= 1.0 {
+            return v / l;
+        }
+    }
+}
+
+/// A third of the rays start anywhere in the (enlarged) box in random directions; a third are
+/// aimed from outside at random points of random triangles; a third start on a random triangle
+/// (as a bounce does) and run a random short length.
+fn random_rays(c: &Compiled, n: usize, seed: u64) -> Vec<(Vec3, Vec3, f32)> {
+    let mut rng = Pcg64::seed_from_u64(seed);
+    let (lo, hi) = (c.tree.bounds_min, c.tree.bounds_max);
+    let center = 0.5 * (lo + hi);
+    let radius = 0.5 * (hi - lo).length();
+    (0..n)
+        .map(|i| {
+            let t = &c.scene.triangles[rng.random_range(0..c.scene.triangles.len())];
+            let (a, b): (f32, f32) = (rng.random(), rng.random());
+            let (a, b) = if a + b > 1.0 { (1.0 - a, 1.0 - b) } else { (a, b) };
+            let on = xyz(t.v0) + (xyz(t.v1) - xyz(t.v0)) * a + (xyz(t.v2) - xyz(t.v0)) * b;
+            match i % 3 {
+                0 => {
+                    let u = Vec3::new(
+                        rng.random_range(-1.0..1.0),
+                        rng.random_range(-1.0..1.0),
+                        rng.random_range(-1.0..1.0),
+                    );
+                    (center + (hi - lo) * 0.6 * u, random_unit(&mut rng), f32::MAX)
+                }
+                1 => {
+                    let o = center + random_unit(&mut rng) * (2.0 * radius);
+                    (o, on - o, f32::MAX)
+                }
+                _ => (on, random_unit(&mut rng), rng.random_range(0.0..0.2) * radius),
+            }
+        })
+        .collect()
+}
+
+fn mesh_case(rel: &str, seed: u64) {
+    let c = compile(obj::load_obj(&mesh(rel)).unwrap(), BuildSettings::default());
+    assert!(c.wide_bvh().depth() <= MAX_DEPTH);
+    let (rays, hits) = check_rays(&c, &random_rays(&c, 100_000, seed));
+    assert!(hits > rays / 3, "{rel}: only {hits} of {rays} rays hit: the test would prove little");
+    eprintln!(
+        "{rel}: {} triangles, {} wide nodes, depth {}, {rays} rays, {hits} hits, all equal to brute force",
+        c.scene.triangles.len(),
+        c.wide_bvh().nodes.len(),
+        c.wide_bvh().depth()
+    );
+}
+
+#[test]
+fn bunny_matches_brute_force() {
+    mesh_case("bunny-stanford-bun_zipper/bun_zipper.obj", 1);
+}
+
+#[test]
+fn dragon_matches_brute_force() {
+    mesh_case("dragon-23k/dragon.obj", 2);
+}
+
+#[test]
+fn cornell_box_original_matches_brute_force() {
+    mesh_case("CornellBox-Original/CornellBox-Original.obj", 3);
+}
+
+/// Rays along grid lines of a grid-aligned staircase: axis-parallel, through vertices, along
+/// edges, lying in faces and in box planes.
+#[test]
+fn staircase_grid_line_rays_match_brute_force() {
+    let (steps, width) = (16u32, 8u32);
+    let c = compile(procedural::staircase(steps, width).unwrap(), BuildSettings::default());
+    let mut rays = Vec::new();
+    let axes = [Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z];
+    let diagonals = [
+        Vec3::new(1.0, 1.0, 0.0),
+        Vec3::new(-1.0, -1.0, 0.0),
+        Vec3::new(1.0, 1.0, 1.0),
+        Vec3::new(-1.0, 0.0, 1.0),
+        Vec3::new(1.0, -1.0, -1.0),
+    ];
+    let n = steps as i32 + 2;
+    for x in -1..=n {
+        for y in -1..=n {
+            for z in -1..=(width as i32 + 1) {
+                let base = Vec3::new(x as f32, y as f32, z as f32);
+                for o in
+                    [base, base + Vec3::new(0.5, 0.0, 0.0), base + Vec3::new(0.0, 0.5, 0.5), base + Vec3::splat(0.5)]
+                {
+                    for d in axes.iter().chain(&diagonals) {
+                        rays.push((o, *d, f32::MAX));
+                        rays.push((o, *d, 1.0));
+                    }
+                }
+            }
+        }
+    }
+    let (count, hits) = check_rays(&c, &rays);
+    assert!(hits > count / 8, "only {hits} of {count} grid rays hit");
+}
+
+#[test]
+fn garbage_rays_miss_without_hanging() {
+    let c = compile(procedural::staircase(4, 2).unwrap(), BuildSettings::default());
+    let scene = view(&c);
+    let (nan, inf) = (f32::NAN, f32::INFINITY);
+    for (o, d) in [
+        (Vec3::new(nan, 1.0, 1.0), Vec3::X),
+        (Vec3::new(1.0, 1.0, 1.0), Vec3::new(nan, 0.0, 0.0)),
+        (Vec3::new(inf, 1.0, 1.0), -Vec3::X),
+        (Vec3::new(1.0, 1.0, 1.0), Vec3::new(inf, 1.0, 0.0)),
+        (Vec3::new(1.0, 1.0, 1.0), Vec3::ZERO),
+        (Vec3::new(1.0, 1.0, 1.0), Vec3::new(1e-40, 0.0, 0.0)),
+    ] {
+        assert!(!wide_bvh::traverse(&scene, o, d, f32::MAX, false).is_hit(), "o={o:?} d={d:?}");
+    }
+}

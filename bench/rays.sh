@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Ray-casting throughput (kdtrace rays): the Aila & Laine triple (primary, ambient occlusion,
-# diffuse) on the CPU path and the GPU kernel, with the short and the full traversal stack, and
+# diffuse) on the CPU path (its wide BVH and the k-d tree) and the GPU kernel, with the short and
+# the full k-d traversal stack, and
 # the persistent-threads vs one-invocation-per-pixel render on the GPU. Side by side in one run;
 # prints Markdown tables for BENCHMARKS.md.
 # Usage: bench/rays.sh [SHARED_SCENES_DIR] [SIZE]   (run scripts/setup.sh first)
@@ -31,7 +32,9 @@ for mesh in bunny-stanford-bun_zipper/bun_zipper.obj sponza-dabrovic/sponza.obj 
   path="$scenes/$mesh"
   [ -f "$path" ] || { echo "missing $path" >&2; continue; }
   for device in cpu gpu; do
-    for stack in short full; do
+    stacks="short full"
+    [ $device = cpu ] && stacks="wide short full"
+    for stack in $stacks; do
       # shellcheck disable=SC2046
       $bin rays "$path" --device $device --traversal $stack --width "$size" --height "$size" $(camera "$mesh") --json 2>/dev/null | python3 -c "$row"
     done

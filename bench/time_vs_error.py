@@ -73,6 +73,8 @@ SCENES = {
 
 LADDERS = {
     "kdtrace-cpu": [4, 16, 64, 256, 1024],
+    # The k-d tree instead of the CPU path's wide BVH (`--traversal full`): what the BVH alone buys.
+    "kdtrace-cpu-kd": [4, 16, 64, 256, 1024],
     # The generic integrator (`--specialize off`): what specialisation alone buys.
     "kdtrace-cpu-generic": [4, 16, 64, 256, 1024],
     # Adaptive sampling: the rungs are thresholds (`--adaptive`), each pixel up to 8192 spp.
@@ -118,6 +120,7 @@ def render(renderer, scene, spp, seed, out, a):
         extra = {
             "-independent": ["--sampler", "independent"],
             "-generic": ["--specialize", "off"],
+            "-kd": ["--traversal", "full"],
             "-adaptive": ["--adaptive", str(spp), "--adaptive-mode", "pilot"],
             "-asyougo": ["--adaptive", str(spp), "--adaptive-mode", "as-you-go"],
         }

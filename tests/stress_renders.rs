@@ -137,6 +137,12 @@ fn scaled_and_moved_cornell_boxes_render_like_the_plain_one() {
             local.origin = origin;
             let world_img = cpu::render(&world, &s, &no_progress).unwrap();
             let world_gpu = g.render(&world, &s, &no_progress).unwrap();
+            // The devices compared on the same k-d tree: 0.04 units off a surface, rays in
+            // corners meet the next wall within rounding (t ≈ 1e-9), a hit that brute force and
+            // the CPU path's wide BVH find and a k-d traversal finds or not, by where its splits
+            // fall (5 of 2304 pixels differ).
+            let world_kd =
+                cpu::render(&world, &RenderSettings { traversal: Traversal::Full, ..s }, &no_progress).unwrap();
             let (ratio, z) = (mean_of(&world_img) / mean_of(&reference), block_z(&reference, &world_img));
             eprintln!(
                 "shift {shift:e} in world coordinates: mean ratio {ratio:.4}, largest block |z| {z:.2} (bound {:.2})",
@@ -146,7 +152,7 @@ fn scaled_and_moved_cornell_boxes_render_like_the_plain_one() {
                 finite(&world_img) && finite(&world_gpu) && (ratio - 1.0).abs() < 0.05,
                 "world coordinates at {shift:e}: ratio {ratio}"
             );
-            assert!(compare(&world_img, &world_gpu).pass, "world coordinates at {shift:e}: CPU and GPU disagree");
+            assert!(compare(&world_kd, &world_gpu).pass, "world coordinates at {shift:e}: CPU and GPU disagree");
             local
         };
         let img = cpu::render(&c, &s, &no_progress).unwrap();

@@ -273,16 +273,21 @@ fn test_blocks<const MASKS: bool>(
     // An empty leaf's start need not be aligned (only non-empty runs are): it tests nothing.
     let k = start / BLOCK_WIDTH;
     let past = if start == end { k } else { end.div_ceil(BLOCK_WIDTH) };
-    test_block_run::<MASKS>(scene, scene.blocks, scene.indices, k, past, shear, best, any_hit)
+    test_block_run::<MASKS, false>(scene, scene.blocks, scene.indices, k, past, shear, best, any_hit)
 }
 
 /// Tests blocks `k .. past` of `blocks` (lane `l` of block `b` is triangle `indices[8b + l]`),
 /// narrowing `best`; the leaf test of both the k-d tree and the CPU's wide BVH (`wide_bvh`).
 /// Returns whether an any-hit query is answered.
+///
+/// With `TIES`, a hit at exactly the closest distance so far replaces it when its triangle id is
+/// lower: brute force's answer whatever order leaves come in, for blocks whose lanes hold
+/// ascending ids (the wide BVH's leaves; a k-d tree keeps coincident triangles in the same leaves
+/// and tests them in id order already).
 #[cfg(not(target_arch = "spirv"))]
 #[inline(always)]
 #[allow(clippy::too_many_arguments)] // the run, the ray and the result
-pub(crate) fn test_block_run<const MASKS: bool>(
+pub(crate) fn test_block_run<const MASKS: bool, const TIES: bool>(
     scene: &SceneView,
     blocks: &[crate::layout::TriBlock],
     indices: &[u32],
@@ -292,14 +297,19 @@ pub(crate) fn test_block_run<const MASKS: bool>(
     best: &mut Hit,
     any_hit: bool,
 ) -> bool {
+    // The distance below which a hit is closer, and whether one at it may still win.
+    let limit = |best: &Hit| if TIES & best.is_hit() { crate::numerics::next_float_up(best.t) } else { best.t };
+    let wins = |best: &Hit, t: f32, id: u32| !TIES | (t < best.t) | (id < best.triangle);
     let mut done = false;
     if !MASKS | !scene.alpha_masks {
         // No masks: one block test per block (the loop below, without its retests).
         while (k < past) & !done {
-            if let Some((lane, h)) = shear.intersect_block(&blocks[k as usize], ALL_LANES, 0.0, best.t, any_hit) {
+            if let Some((lane, h)) = shear.intersect_block(&blocks[k as usize], ALL_LANES, 0.0, limit(best), any_hit) {
                 let id = indices[(k * BLOCK_WIDTH + lane) as usize];
-                *best = Hit { t: h.t, triangle: id, u: h.u, v: h.v, w: h.w, nodes: 0, tests: 0 };
-                done = any_hit;
+                if wins(best, h.t, id) {
+                    *best = Hit { t: h.t, triangle: id, u: h.u, v: h.v, w: h.w, nodes: 0, tests: 0 };
+                    done = any_hit;
+                }
             }
             k += 1;
         }
@@ -312,10 +322,13 @@ pub(crate) fn test_block_run<const MASKS: bool>(
         // the next closest (or next) lane, as `test_leaf_each` finds it.
         let mut lanes = ALL_LANES;
         while lanes != 0 {
-            lanes = match shear.intersect_block(&blocks[k as usize], lanes, 0.0, best.t, any_hit) {
+            lanes = match shear.intersect_block(&blocks[k as usize], lanes, 0.0, limit(best), any_hit) {
                 Some((lane, h)) => {
                     let id = indices[(k * BLOCK_WIDTH + lane) as usize];
-                    if cut_out(scene, id, h.u, h.v, h.w) {
+                    if !wins(best, h.t, id) {
+                        // A tie with a lower id already found: the later lanes' ids are higher.
+                        0
+                    } else if cut_out(scene, id, h.u, h.v, h.w) {
                         lanes & !(1 << lane)
                     } else {
                         *best = Hit { t: h.t, triangle: id, u: h.u, v: h.v, w: h.w, nodes: 0, tests: 0 };

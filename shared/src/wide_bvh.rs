@@ -9,7 +9,9 @@
 //! k-d tree.
 //!
 //! The result is the k-d tree's: the closest hit that counts (alpha masks as in `kdtree`) in
-//! (0, t_max), by the same lane-wise watertight test, so it equals brute force bit for bit. Box
+//! (0, t_max), by the same lane-wise watertight test, so it equals brute force bit for bit; of
+//! triangles hit at exactly the same distance (coincident faces) the lowest id, as brute force
+//! picks, whatever order the leaves come in. Box
 //! tests are conservative: the slab distances carry about γ(3) of relative error and a hit's own
 //! distance a few ulps, so a box's exit is widened and its entry compared to the closest hit
 //! lowered, both by `T_SLACK` as in the k-d traversal. A ray parallel to an axis's planes (a zero
@@ -238,7 +240,7 @@ fn traverse_with<const MASKS: bool>(scene: &SceneView, origin: Vec3, dir: Vec3, 
             let k = child & (MAX_BLOCKS - 1);
             let count = ((child >> 28) & 7) + 1;
             tests += count;
-            if test_block_run::<MASKS>(scene, tree.blocks, tree.indices, k, k + 1, &shear, &mut best, any_hit) {
+            if test_block_run::<MASKS, true>(scene, tree.blocks, tree.indices, k, k + 1, &shear, &mut best, any_hit) {
                 break;
             }
         }

@@ -78,7 +78,9 @@ pub fn build(triangles: &[Triangle]) -> WideBvh {
     out.indices = leaves
         .iter()
         .flat_map(|&(start, count)| {
-            let run = &ids[start as usize..(start + count) as usize];
+            // Ascending ids: the leaf test's tie rule relies on it.
+            let mut run = ids[start as usize..(start + count) as usize].to_vec();
+            run.sort_unstable();
             (0..width).map(move |l| run[l.min(run.len() - 1)])
         })
         .collect();

@@ -2,6 +2,8 @@
 //! bit for bit and the same triangle, unless two triangles are hit at that very distance.
 #[path = "common/paths.rs"]
 mod paths;
+#[path = "common/rays.rs"]
+mod rays;
 use kdtrace::{
     compile,
     kdbuild::{validate, BuildSettings},
@@ -12,12 +14,12 @@ use paths::mesh;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use rayon::prelude::*;
+use rays::{grid_line_rays, random_point_on, random_unit};
 use shared::{
     glam::Vec3,
     kdtree::{intersect, intersect_brute_force, occluded},
     scene::SceneView,
     triangle::RayShear,
-    vecmath::xyz,
 };
 
 fn view(c: &Compiled) -> SceneView<'_> {
@@ -56,16 +58,6 @@ fn check_rays(c: &Compiled, rays: &[(Vec3, Vec3)]) -> (usize, usize) {
     (rays.len(), hits)
 }
 
-fn random_unit(rng: &mut Pcg64) -> Vec3 {
-    loop {
-        let v = Vec3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
-        let l = v.length();
-        if l > 1e-3 && l <= 1.0 {
-            return v / l;
-        }
-    }
-}
-
 /// Half the rays start anywhere in the (enlarged) box in random directions; half are aimed from
 /// outside at random points of random triangles, so most of them hit.
 fn random_rays(c: &Compiled, n: usize, seed: u64) -> Vec<(Vec3, Vec3)> {
@@ -87,9 +79,7 @@ fn random_rays(c: &Compiled, n: usize, seed: u64) -> Vec<(Vec3, Vec3)> {
                 (o, random_unit(&mut rng))
             } else {
                 let t = &c.scene.triangles[rng.random_range(0..c.scene.triangles.len())];
-                let (a, b): (f32, f32) = (rng.random(), rng.random());
-                let (a, b) = if a + b > 1.0 { (1.0 - a, 1.0 - b) } else { (a, b) };
-                let target = xyz(t.v0) + (xyz(t.v1) - xyz(t.v0)) * a + (xyz(t.v2) - xyz(t.v0)) * b;
+                let target = random_point_on(t, &mut rng);
                 let o = center + random_unit(&mut rng) * (2.0 * radius);
                 (o, target - o)
             }
@@ -134,30 +124,7 @@ fn staircase_grid_line_rays_match_brute_force() {
     let (steps, width) = (16u32, 8u32);
     let c = compile(procedural::staircase(steps, width).unwrap(), BuildSettings::default());
     validate(&c.tree, &c.scene.triangles).unwrap();
-    let mut rays = Vec::new();
-    let axes = [Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z];
-    let diagonals = [
-        Vec3::new(1.0, 1.0, 0.0),
-        Vec3::new(-1.0, -1.0, 0.0),
-        Vec3::new(1.0, 1.0, 1.0),
-        Vec3::new(-1.0, 0.0, 1.0),
-        Vec3::new(1.0, -1.0, -1.0),
-    ];
-    let n = steps as i32 + 2;
-    for x in -1..=n {
-        for y in -1..=n {
-            for z in -1..=(width as i32 + 1) {
-                let base = Vec3::new(x as f32, y as f32, z as f32);
-                for o in
-                    [base, base + Vec3::new(0.5, 0.0, 0.0), base + Vec3::new(0.0, 0.5, 0.5), base + Vec3::splat(0.5)]
-                {
-                    for d in axes.iter().chain(&diagonals) {
-                        rays.push((o, *d));
-                    }
-                }
-            }
-        }
-    }
+    let rays = grid_line_rays(steps, width);
     let (count, hits) = check_rays(&c, &rays);
     assert!(hits > count / 4, "only {hits} of {count} grid rays hit");
     eprintln!(

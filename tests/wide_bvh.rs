@@ -3,6 +3,8 @@
 //! queries must agree with it, for unbounded and for short rays.
 #[path = "common/paths.rs"]
 mod paths;
+#[path = "common/rays.rs"]
+mod rays;
 use kdtrace::{
     compile,
     kdbuild::BuildSettings,
@@ -13,10 +15,10 @@ use paths::mesh;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use rayon::prelude::*;
+use rays::{grid_line_rays, random_point_on, random_unit};
 use shared::{
     glam::Vec3,
     kdtree::intersect_brute_force,
-    vecmath::xyz,
     wide_bvh::{self, MAX_DEPTH},
 };
 
@@ -30,7 +32,8 @@ fn view(c: &Compiled) -> shared::scene::SceneView<'_> {
 /// t_max; returns (rays, hits). Panics on the first mismatch.
 fn check_rays(c: &Compiled, rays: &[(Vec3, Vec3, f32)]) -> (usize, usize) {
     let scene = view(c);
-    rays.par_iter()
+    let hits = rays
+        .par_iter()
         .map(|&(o, d, t_max)| {
             let wide = wide_bvh::traverse(&scene, o, d, t_max, false);
             let brute = intersect_brute_force(&scene, o, d, t_max);
@@ -54,25 +57,8 @@ fn check_rays(c: &Compiled, rays: &[(Vec3, Vec3, f32)]) -> (usize, usize) {
             }
             brute.is_hit() as usize
         })
-        .sum::<usize>()
-        .pipe(|hits| (rays.len(), hits))
-}
-
-trait Pipe: Sized {
-    fn pipe<R>(self, f: impl FnOnce(Self) -> R) -> R {
-        f(self)
-    }
-}
-impl<T> Pipe for T {}
-
-fn random_unit(rng: &mut Pcg64) -> Vec3 {
-    loop {
-        let v = Vec3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
-        let l = v.length();
-        if l > 1e-3 && l <= 1.0 {
-            return v / l;
-        }
-    }
+        .sum::<usize>();
+    (rays.len(), hits)
 }
 
 /// A third of the rays start anywhere in the (enlarged) box in random directions; a third are
@@ -86,9 +72,7 @@ fn random_rays(c: &Compiled, n: usize, seed: u64) -> Vec<(Vec3, Vec3, f32)> {
     (0..n)
         .map(|i| {
             let t = &c.scene.triangles[rng.random_range(0..c.scene.triangles.len())];
-            let (a, b): (f32, f32) = (rng.random(), rng.random());
-            let (a, b) = if a + b > 1.0 { (1.0 - a, 1.0 - b) } else { (a, b) };
-            let on = xyz(t.v0) + (xyz(t.v1) - xyz(t.v0)) * a + (xyz(t.v2) - xyz(t.v0)) * b;
+            let on = random_point_on(t, &mut rng);
             match i % 3 {
                 0 => {
                     let u = Vec3::new(
@@ -142,31 +126,9 @@ fn cornell_box_original_matches_brute_force() {
 fn staircase_grid_line_rays_match_brute_force() {
     let (steps, width) = (16u32, 8u32);
     let c = compile(procedural::staircase(steps, width).unwrap(), BuildSettings::default());
-    let mut rays = Vec::new();
-    let axes = [Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z];
-    let diagonals = [
-        Vec3::new(1.0, 1.0, 0.0),
-        Vec3::new(-1.0, -1.0, 0.0),
-        Vec3::new(1.0, 1.0, 1.0),
-        Vec3::new(-1.0, 0.0, 1.0),
-        Vec3::new(1.0, -1.0, -1.0),
-    ];
-    let n = steps as i32 + 2;
-    for x in -1..=n {
-        for y in -1..=n {
-            for z in -1..=(width as i32 + 1) {
-                let base = Vec3::new(x as f32, y as f32, z as f32);
-                for o in
-                    [base, base + Vec3::new(0.5, 0.0, 0.0), base + Vec3::new(0.0, 0.5, 0.5), base + Vec3::splat(0.5)]
-                {
-                    for d in axes.iter().chain(&diagonals) {
-                        rays.push((o, *d, f32::MAX));
-                        rays.push((o, *d, 1.0));
-                    }
-                }
-            }
-        }
-    }
+    // Each twice: unbounded, and one unit long.
+    let rays: Vec<(Vec3, Vec3, f32)> =
+        grid_line_rays(steps, width).into_iter().flat_map(|(o, d)| [(o, d, f32::MAX), (o, d, 1.0)]).collect();
     let (count, hits) = check_rays(&c, &rays);
     assert!(hits > count / 8, "only {hits} of {count} grid rays hit");
 }

@@ -80,6 +80,13 @@ impl Devices {
         }
     }
 
+    fn any_cpu(&self) -> bool {
+        match self {
+            Devices::One(d) => *d == Device::Cpu,
+            Devices::Many(units) => units.contains(&Unit::Cpu),
+        }
+    }
+
     fn any_gpu(&self) -> bool {
         match self {
             Devices::One(d) => *d == Device::Gpu,
@@ -177,6 +184,13 @@ pub fn run(r: RenderArgs) -> Result<ExitCode> {
         s.check()?;
     }
     crate::render::memory::check(s.width, s.height, devices.any_gpu())?;
+    // The CPU path's wide BVH is built here rather than by the first pass, so its time is
+    // reported as building.
+    if devices.any_cpu() && s.traversal.for_cpu_path() == crate::settings::Traversal::Wide {
+        let t = std::time::Instant::now();
+        loaded.compiled.wide_bvh();
+        loaded.build_s += t.elapsed().as_secs_f64();
+    }
     let c = &loaded.compiled;
     let range = r.samples.unwrap_or([0, s.spp]);
     let run = match (&devices, &r.partial) {

@@ -34,7 +34,8 @@ pub fn replay(c: &Compiled, s: &RenderSettings, x: u32, y: u32, sample: u32) -> 
     if x >= s.width || y >= s.height {
         bail!("pixel ({x}, {y}) lies outside the {}x{} image", s.width, s.height);
     }
-    // As the CPU renderer resolves it.
+    // On the k-d tree, whose nodes the record lists: `auto` is the full stack, as on lavapipe.
+    // The wide BVH returns the same hits (`shared::wide_bvh`) but names no k-d nodes.
     let s = &RenderSettings { traversal: s.traversal.resolve(true), ..*s };
     let params = c.params(s, sample, 1)?;
     let scene = c.view(&params);

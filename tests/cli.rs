@@ -164,7 +164,40 @@ fn bad_input_exits_2_with_the_file_and_line() {
         &["render", &cornell, "--out", out, "--device", "gpu", "--adapter", "no-such-adapter", "--spp", "1"],
         "no-such-adapter",
     );
+    expect_input_error(
+        &["render", &cornell, "--out", out, "--device", "gpu", "--traversal", "wide", "--spp", "1"],
+        "--traversal wide",
+    );
     assert!(!Path::new(out).exists(), "a failed render wrote its output");
+}
+
+/// The CPU path renders on its wide BVH unless told otherwise, reports it, and counts its build.
+#[test]
+fn the_cpu_path_renders_on_its_wide_bvh() {
+    let cornell = repo("scenes/cornell-box.obj");
+    for (flag, expected) in [("auto", "wide"), ("wide", "wide"), ("full", "full")] {
+        let out = tmp(&format!("traversal-{flag}.png"));
+        let o = kdtrace(&[
+            "render",
+            &cornell,
+            "--out",
+            out.to_str().unwrap(),
+            "--traversal",
+            flag,
+            "--spp",
+            "1",
+            "--width",
+            "8",
+            "--height",
+            "8",
+            "--json",
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let line = String::from_utf8_lossy(&o.stdout).lines().last().unwrap_or_default().to_string();
+        let j: serde_json::Value = serde_json::from_str(&line).unwrap_or_else(|e| panic!("{e}: {line}"));
+        assert_eq!(j["traversal"], expected, "--traversal {flag}");
+        assert!(j["build_s"].as_f64().unwrap() > 0.0);
+    }
 }
 
 #[test]

@@ -164,6 +164,10 @@ pub fn run(r: RenderArgs) -> Result<ExitCode> {
     // missing folder or a clash found at the end.
     let outputs: Vec<&Path> = r.out.iter().chain(&r.partial).chain(&r.variance).map(PathBuf::as_path).collect();
     files::check_outputs(&outputs, &[&r.scene])?;
+    if devices.any_gpu() {
+        // Before the scene is read: a GPU has no wide BVH.
+        r.image.traversal.check_for_adapter()?;
+    }
     let mut loaded = load(&r.scene, devices.build_settings(r.partial.is_some()), r.image.camera.as_deref())?;
     let mut s = settings(&r.image, &mut loaded, &r.scene)?;
     let several = matches!(devices, Devices::Many(_));

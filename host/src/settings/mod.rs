@@ -68,10 +68,16 @@ impl Traversal {
 
     /// `Auto` made concrete for a wgpu adapter, which has no wide BVH.
     pub fn for_adapter(self, cpu: bool) -> anyhow::Result<Traversal> {
+        self.check_for_adapter()?;
+        Ok(self.resolve(cpu))
+    }
+
+    /// Refuses the wide BVH for a wgpu adapter.
+    pub fn check_for_adapter(self) -> anyhow::Result<()> {
         if self == Traversal::Wide {
             anyhow::bail!("--traversal wide is the CPU path's BVH; a GPU traverses the k-d tree (full or short)");
         }
-        Ok(self.resolve(cpu))
+        Ok(())
     }
 }
 

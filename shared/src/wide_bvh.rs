@@ -11,12 +11,12 @@
 //! The result is the k-d tree's: the closest hit that counts (alpha masks as in `kdtree`) in
 //! (0, t_max), by the same lane-wise watertight test, so it equals brute force bit for bit; of
 //! triangles hit at exactly the same distance (coincident faces) the lowest id, as brute force
-//! picks, whatever order the leaves come in. Box
-//! tests are conservative: the slab distances carry about γ(3) of relative error and a hit's own
-//! distance a few ulps, so a box's exit is widened and its entry compared to the closest hit
-//! lowered, both by `T_SLACK` as in the k-d traversal. A ray parallel to an axis's planes (a zero
-//! direction component) forms no distance on that axis, which would be `0·∞ = NaN` for a ray
-//! in a box's face: its origin is tested against the slab instead.
+//! picks, whatever order the leaves come in. Box tests are conservative: the slab distances
+//! carry about γ(3) of relative error and a hit's own distance a few ulps, so a box's exit is
+//! widened and its entry compared to the closest hit lowered, both by `T_SLACK` as in the k-d
+//! traversal. A ray parallel to an axis's planes (a zero direction component) forms no distance
+//! on that axis, which would be `0·∞ = NaN` for a ray in a box's face: its origin is tested
+//! against the slab instead.
 use crate::glam::Vec3;
 use crate::kdtree::{ray_in_box, test_block_run, Hit};
 use crate::layout::{TriBlock, BLOCK_WIDTH};
@@ -37,8 +37,9 @@ pub const WIDTH: usize = 8;
 pub const LEAF_BIT: u32 = 1 << 31;
 /// Blocks a tree may hold: a leaf's block index has 28 bits.
 pub const MAX_BLOCKS: u32 = 1 << 28;
-/// Levels of nodes the builder may make: the traversal's stack holds the seven siblings a level
-/// may leave behind for each of them.
+/// Levels of nodes the builder may make (its binary tree stays below 48 + log2 of the triangle
+/// count, `host::bvh`): the traversal's stack holds the seven siblings a level may leave behind
+/// for each of them.
 pub const MAX_DEPTH: usize = 96;
 const STACK_SIZE: usize = (WIDTH - 1) * MAX_DEPTH + 1;
 
@@ -91,22 +92,6 @@ fn max(a: Lanes, b: Lanes) -> Lanes {
 #[inline(always)]
 fn min(a: Lanes, b: Lanes) -> Lanes {
     a.simd_lt(b).select(a, b)
-}
-
-/// The lanes set in `m` as bits: one `vmovmskps` where the CPU has AVX (`Mask::to_bitmask`
-/// compiles to a chain of packs).
-#[inline(always)]
-fn bits(m: Mask<i32, WIDTH>) -> u32 {
-    #[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
-    {
-        use core::arch::x86_64::{_mm256_castsi256_ps, _mm256_movemask_ps};
-        // SAFETY: the target has AVX (cfg above); the types are the same 256 bits.
-        unsafe { _mm256_movemask_ps(_mm256_castsi256_ps(m.to_simd().into())) as u32 }
-    }
-    #[cfg(not(all(target_arch = "x86_64", target_feature = "avx")))]
-    {
-        m.to_bitmask() as u32
-    }
 }
 
 #[derive(Clone, Copy)]
@@ -188,7 +173,7 @@ fn traverse_with<const MASKS: bool>(scene: &SceneView, origin: Vec3, dir: Vec3, 
             };
             let reach = Lanes::splat(best.t);
             let hit = inside & t_in.simd_le(t_out) & (t_in * Lanes::splat(shrink)).simd_le(reach);
-            let mut mask = bits(hit);
+            let mut mask = hit.to_bitmask() as u32;
             if mask != 0 {
                 let ts = t_in.to_array();
                 if mask & (mask - 1) == 0 {

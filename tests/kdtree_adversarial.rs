@@ -2,7 +2,7 @@
 //! zero-area, a single triangle, 10^5 copies of one triangle) must give a valid, bounded tree
 //! quickly; rays lying exactly in split planes and rays starting on triangle edges must get
 //! exactly the brute-force hit. The CPU path's wide BVH is held to the same on the same
-//! inputs: its depth within `wide_bvh::MAX_DEPTH`, its hits brute force's.
+//! inputs: its depth within `layout::WIDE_MAX_DEPTH`, its hits brute force's.
 #[path = "common/paths.rs"]
 mod paths;
 use kdtrace::{
@@ -82,7 +82,7 @@ fn traversal_matches_brute_force(what: &str, tris: &[Triangle], rays: usize) {
     .unwrap();
     let c = compile(scene, BuildSettings::default());
     let depth = c.wide_bvh().depth();
-    assert!(depth <= shared::wide_bvh::MAX_DEPTH, "{what}: wide BVH depth {depth}");
+    assert!(depth <= shared::layout::WIDE_MAX_DEPTH, "{what}: wide BVH depth {depth}");
     let params = c.bounds_params();
     let view = c.view(&params);
     // Flat scenes get origins off their plane: every axis spans at least the largest extent.

@@ -16,11 +16,7 @@ use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use rayon::prelude::*;
 use rays::{grid_line_rays, random_point_on, random_unit};
-use shared::{
-    glam::Vec3,
-    kdtree::intersect_brute_force,
-    wide_bvh::{self, MAX_DEPTH},
-};
+use shared::{glam::Vec3, kdtree::intersect_brute_force, layout::WIDE_MAX_DEPTH as MAX_DEPTH, wide_bvh};
 
 /// The scene with its wide BVH.
 fn view(c: &Compiled) -> shared::scene::SceneView<'_> {

@@ -22,6 +22,48 @@ pub struct Triangle {
 /// eight, one per lane of an AVX register (two SSE registers where AVX is missing).
 pub const BLOCK_WIDTH: u32 = 8;
 
+/// Children per node of the CPU path's wide BVH (`wide_bvh`): one per lane of an AVX register,
+/// as many as a leaf block holds triangles.
+pub const WIDE_WIDTH: usize = BLOCK_WIDTH as usize;
+/// A wide child reference with this bit set is a leaf: bits 28..31 hold its triangle count less
+/// one, bits 0..28 its block (`WideNode::leaf_ref`). Without it, the child is a node index.
+pub const WIDE_LEAF_BIT: u32 = 1 << 31;
+/// Blocks a wide BVH may hold: a leaf's block index has 28 bits.
+pub const WIDE_MAX_BLOCKS: u32 = 1 << 28;
+/// Levels of wide nodes the builder may make (its binary tree stays below 48 + log2 of the
+/// triangle count, `host::bvh`); the traversal's stack is sized for them.
+pub const WIDE_MAX_DEPTH: usize = 96;
+
+/// One node of the CPU path's wide BVH: the boxes of its children, lower corners in
+/// `bounds[0..3]` (x, y, z), upper in `bounds[3..6]`, a lane per child, and the children's
+/// references. An unused lane has the empty box (lower +∞, upper −∞), which no ray enters.
+/// Aligned for AVX loads; 224 bytes. The GPU never reads it.
+#[cfg(not(target_arch = "spirv"))]
+#[repr(C, align(32))]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct WideNode {
+    pub bounds: [[f32; WIDE_WIDTH]; 6],
+    pub child: [u32; WIDE_WIDTH],
+}
+
+#[cfg(not(target_arch = "spirv"))]
+impl WideNode {
+    /// A node with every lane empty.
+    pub fn empty() -> Self {
+        let mut bounds = [[f32::INFINITY; WIDE_WIDTH]; 6];
+        for b in &mut bounds[3..] {
+            *b = [f32::NEG_INFINITY; WIDE_WIDTH];
+        }
+        Self { bounds, child: [0; WIDE_WIDTH] }
+    }
+
+    /// The reference to leaf block `block` with `count` (1..=8) triangles.
+    #[inline]
+    pub fn leaf_ref(block: u32, count: u32) -> u32 {
+        WIDE_LEAF_BIT | ((count - 1) << 28) | block
+    }
+}
+
 /// `BLOCK_WIDTH` consecutive entries of the leaf index list, transposed so that one SIMD lane
 /// holds one triangle: `v[3·j + a][lane]` holds axis `a` (0 = x) of vertex `j`. Block `k` holds
 /// the triangles of index entries `8k .. 8k + 8`; the builders start every leaf at a multiple of

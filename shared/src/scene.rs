@@ -31,7 +31,7 @@ pub struct SceneView<'a> {
     /// The CPU's eight-wide BVH over the same triangles (`wide_bvh`); empty unless the host
     /// built one.
     #[cfg(not(target_arch = "spirv"))]
-    pub wide: crate::wide_bvh::WideView<'a>,
+    pub wide: WideView<'a>,
 }
 
 impl<'a> SceneView<'a> {
@@ -65,7 +65,18 @@ impl<'a> SceneView<'a> {
             bounds_min: xyz(params.bounds_min),
             bounds_max: xyz(params.bounds_max),
             #[cfg(not(target_arch = "spirv"))]
-            wide: crate::wide_bvh::WideView::default(),
+            wide: WideView::default(),
         }
     }
+}
+
+/// The CPU path's wide BVH as its traversal reads it (`wide_bvh`): node 0 is the root (no nodes:
+/// an empty scene); leaf blocks, and per block `BLOCK_WIDTH` triangle ids (lanes past a leaf's
+/// count repeat its last triangle, as in the k-d tree's blocks).
+#[cfg(not(target_arch = "spirv"))]
+#[derive(Clone, Copy, Default)]
+pub struct WideView<'a> {
+    pub nodes: &'a [crate::layout::WideNode],
+    pub blocks: &'a [TriBlock],
+    pub indices: &'a [u32],
 }

@@ -5,8 +5,8 @@
 //!
 //! The k-d tree's single-ray traversal is a chain of dependent steps, each with a branch the
 //! predictor cannot learn; here one step tests eight boxes at once and the far children wait on
-//! a stack in order of entry distance. The host builds the tree (`host::bvh`); the GPU keeps the
-//! k-d tree.
+//! a stack in order of entry distance. The host builds the tree (`host::bvh`; its layout is
+//! `layout::WideNode`); the GPU keeps the k-d tree.
 //!
 //! The result is the k-d tree's: the closest hit that counts (alpha masks as in `kdtree`) in
 //! (0, t_max), by the same lane-wise watertight test, so it equals brute force bit for bit; of
@@ -19,7 +19,9 @@
 //! against the slab instead.
 use crate::glam::Vec3;
 use crate::kdtree::{ray_in_box, test_block_run, Hit};
-use crate::layout::{TriBlock, BLOCK_WIDTH};
+use crate::layout::{
+    WIDE_LEAF_BIT as LEAF_BIT, WIDE_MAX_BLOCKS as MAX_BLOCKS, WIDE_MAX_DEPTH as MAX_DEPTH, WIDE_WIDTH as WIDTH,
+};
 use crate::numerics::T_SLACK;
 use crate::scene::SceneView;
 use crate::triangle::RayShear;
@@ -29,56 +31,8 @@ use core::simd::cmp::SimdPartialOrd;
 use core::simd::Select;
 use core::simd::{Mask, Simd};
 
-/// Children per node: one per lane of an AVX register.
-pub const WIDTH: usize = 8;
-
-/// A child reference with this bit set is a leaf: bits 28..31 hold its triangle count less one,
-/// bits 0..28 its block in `WideView::blocks`. Without it, the child is a node index.
-pub const LEAF_BIT: u32 = 1 << 31;
-/// Blocks a tree may hold: a leaf's block index has 28 bits.
-pub const MAX_BLOCKS: u32 = 1 << 28;
-/// Levels of nodes the builder may make (its binary tree stays below 48 + log2 of the triangle
-/// count, `host::bvh`): the traversal's stack holds the seven siblings a level may leave behind
-/// for each of them.
-pub const MAX_DEPTH: usize = 96;
+/// The traversal's stack: the seven siblings each level may leave behind, and the root.
 const STACK_SIZE: usize = (WIDTH - 1) * MAX_DEPTH + 1;
-
-/// The reference to leaf block `block` with `count` (1..=8) triangles.
-#[inline]
-pub fn leaf_ref(block: u32, count: u32) -> u32 {
-    LEAF_BIT | ((count - 1) << 28) | block
-}
-
-/// One node: the boxes of its children, lower corners in `bounds[0..3]` (x, y, z), upper in
-/// `bounds[3..6]`, a lane per child, and the children's references. An unused lane has the empty
-/// box (lower +∞, upper −∞), which no ray enters. Aligned for AVX loads; 224 bytes.
-#[repr(C, align(32))]
-#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct WideNode {
-    pub bounds: [[f32; WIDTH]; 6],
-    pub child: [u32; WIDTH],
-}
-
-impl WideNode {
-    /// A node with every lane empty.
-    pub fn empty() -> Self {
-        let mut bounds = [[f32::INFINITY; WIDTH]; 6];
-        for b in &mut bounds[3..] {
-            *b = [f32::NEG_INFINITY; WIDTH];
-        }
-        Self { bounds, child: [0; WIDTH] }
-    }
-}
-
-/// The tree as the traversal reads it: node 0 is the root (no nodes: an empty scene); leaf
-/// blocks, and per block `BLOCK_WIDTH` triangle ids (lanes past a leaf's count repeat its last
-/// triangle, as in the k-d tree's blocks).
-#[derive(Clone, Copy, Default)]
-pub struct WideView<'a> {
-    pub nodes: &'a [WideNode],
-    pub blocks: &'a [TriBlock],
-    pub indices: &'a [u32],
-}
 
 type Lanes = Simd<f32, WIDTH>;
 
@@ -248,5 +202,3 @@ fn traverse_with<const MASKS: bool>(scene: &SceneView, origin: Vec3, dir: Vec3, 
     best.tests = tests;
     best
 }
-
-const _: () = assert!(BLOCK_WIDTH as usize == WIDTH);

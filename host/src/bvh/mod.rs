@@ -10,8 +10,11 @@ use binned::{Kind, Node2, Prim};
 use rayon::prelude::*;
 use shared::glam::Vec3;
 use shared::layout::{TriBlock, Triangle, BLOCK_WIDTH};
+use shared::layout::{
+    WideNode, WIDE_LEAF_BIT, WIDE_MAX_BLOCKS as MAX_BLOCKS, WIDE_MAX_DEPTH as MAX_DEPTH, WIDE_WIDTH as WIDTH,
+};
+use shared::scene::WideView;
 use shared::vecmath::xyz;
-use shared::wide_bvh::{leaf_ref, WideNode, WideView, MAX_BLOCKS, MAX_DEPTH, WIDTH};
 
 /// The tree, its leaf blocks and the triangle id of every block lane.
 #[derive(Default)]
@@ -33,9 +36,7 @@ impl WideBvh {
                 .child
                 .iter()
                 .zip(0..WIDTH)
-                .filter(|&(&c, l)| {
-                    c & shared::wide_bvh::LEAF_BIT == 0 && nodes[n].bounds[0][l] <= nodes[n].bounds[3][l]
-                })
+                .filter(|&(&c, l)| c & WIDE_LEAF_BIT == 0 && nodes[n].bounds[0][l] <= nodes[n].bounds[3][l])
                 .map(|(&c, _)| depth(nodes, c as usize))
                 .max()
                 .unwrap_or(0)
@@ -113,7 +114,7 @@ fn emit(n: &Node2, nodes: &mut Vec<WideNode>, leaves: &mut Vec<(u32, u32)>) -> u
     let kids = match &n.kind {
         Kind::Leaf { start, count } => {
             leaves.push((*start, *count));
-            return leaf_ref(leaves.len() as u32 - 1, *count);
+            return WideNode::leaf_ref(leaves.len() as u32 - 1, *count);
         }
         Kind::Inner(kids) => kids,
     };

@@ -159,3 +159,57 @@ fn middle_split(prims: &[Prim], ids: &mut [u32], centres: &Aabb) -> usize {
     });
     mid
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn depth(n: &Node2) -> u32 {
+        match &n.kind {
+            Kind::Leaf { .. } => 1,
+            Kind::Inner(kids) => 1 + depth(&kids[0]).max(depth(&kids[1])),
+        }
+    }
+
+    fn leaves(n: &Node2, out: &mut Vec<(u32, u32)>) {
+        match &n.kind {
+            Kind::Leaf { start, count } => out.push((*start, *count)),
+            Kind::Inner(kids) => kids.iter().for_each(|k| leaves(k, out)),
+        }
+    }
+
+    /// Triangles at exponentially growing distances: the best SAH plane peels the few farthest
+    /// off at each split, a chain far deeper than a balanced tree, yet within the bound; past
+    /// `SAH_DEPTH` (the build entered there) the middle splits are balanced. Every triangle lands
+    /// in exactly one leaf of at most `LEAF_SIZE`.
+    #[test]
+    fn a_chain_of_peeled_triangles_stays_within_the_depth_bound() {
+        let n = 300usize;
+        let prims: Vec<Prim> = (0..n)
+            .map(|i| {
+                let x = 1.3f32.powi(i as i32);
+                let (lo, hi) = (Vec3::new(x, 0.0, 0.0), Vec3::new(x * 1.001, 1.0, 0.0));
+                Prim { lo, hi, centre: (lo + hi) * 0.5 }
+            })
+            .collect();
+        let balanced = (n as f32 / LEAF_SIZE as f32).log2().ceil() as u32 + 1;
+        for start in [0, SAH_DEPTH] {
+            let mut ids: Vec<u32> = (0..n as u32).collect();
+            let root = build(&prims, &mut ids, 0, start);
+            let d = depth(&root);
+            if start == 0 {
+                assert!(d > balanced + 4, "depth {d}: the heuristic did not chain, the test proves nothing");
+                assert!(d <= SAH_DEPTH + (n as f32).log2().ceil() as u32 + 1, "depth {d}");
+            } else {
+                assert!(d <= balanced + 1, "middle splits: depth {d}, balanced {balanced}");
+            }
+            let mut runs = Vec::new();
+            leaves(&root, &mut runs);
+            assert!(runs.iter().all(|&(_, c)| (1..=LEAF_SIZE as u32).contains(&c)));
+            let mut seen: Vec<u32> =
+                runs.iter().flat_map(|&(s, c)| ids[s as usize..(s + c) as usize].to_vec()).collect();
+            seen.sort_unstable();
+            assert_eq!(seen, (0..n as u32).collect::<Vec<_>>(), "every triangle in exactly one leaf");
+        }
+    }
+}

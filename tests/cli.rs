@@ -171,30 +171,22 @@ fn bad_input_exits_2_with_the_file_and_line() {
     assert!(!Path::new(out).exists(), "a failed render wrote its output");
 }
 
+/// `render SCENE --out OUT` at 8×8 and 1 spp with `--json`, and `extra`.
+fn tiny_render(scene: &str, out: &Path, extra: &[&str]) -> std::process::Output {
+    let mut args = vec!["render", scene, "--out", out.to_str().unwrap(), "--spp", "1", "--width", "8", "--height", "8"];
+    args.extend_from_slice(extra);
+    args.push("--json");
+    kdtrace(&args)
+}
+
 /// The CPU path renders on its wide BVH unless told otherwise, reports it, and counts its build.
 #[test]
 fn the_cpu_path_renders_on_its_wide_bvh() {
     let cornell = repo("scenes/cornell-box.obj");
     for (flag, expected) in [("auto", "wide"), ("wide", "wide"), ("full", "full")] {
-        let out = tmp(&format!("traversal-{flag}.png"));
-        let o = kdtrace(&[
-            "render",
-            &cornell,
-            "--out",
-            out.to_str().unwrap(),
-            "--traversal",
-            flag,
-            "--spp",
-            "1",
-            "--width",
-            "8",
-            "--height",
-            "8",
-            "--json",
-        ]);
+        let o = tiny_render(&cornell, &tmp(&format!("traversal-{flag}.png")), &["--traversal", flag]);
         assert!(o.status.success(), "{}", stderr(&o));
-        let line = String::from_utf8_lossy(&o.stdout).lines().last().unwrap_or_default().to_string();
-        let j: serde_json::Value = serde_json::from_str(&line).unwrap_or_else(|e| panic!("{e}: {line}"));
+        let j: serde_json::Value = serde_json::from_slice(&o.stdout).expect("one JSON line");
         assert_eq!(j["traversal"], expected, "--traversal {flag}");
         assert!(j["build_s"].as_f64().unwrap() > 0.0);
     }
@@ -203,20 +195,7 @@ fn the_cpu_path_renders_on_its_wide_bvh() {
 #[test]
 fn missing_material_library_renders_grey() {
     let obj = write("nomtl.obj", "mtllib absent.mtl\nv -1 -1 0\nv 1 -1 0\nv 0 1 0\nusemtl whatever\nf 1 2 3\n");
-    let out = tmp("nomtl.png");
-    let o = kdtrace(&[
-        "render",
-        obj.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--spp",
-        "1",
-        "--width",
-        "8",
-        "--height",
-        "8",
-        "--json",
-    ]);
+    let o = tiny_render(obj.to_str().unwrap(), &tmp("nomtl.png"), &[]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).contains("material library not found"), "{}", stderr(&o));
 }

@@ -62,6 +62,12 @@ impl WideNode {
     pub fn leaf_ref(block: u32, count: u32) -> u32 {
         WIDE_LEAF_BIT | ((count - 1) << 28) | block
     }
+
+    /// The block and triangle count of leaf reference `r` (`leaf_ref`'s inverse).
+    #[inline]
+    pub fn leaf_of(r: u32) -> (u32, u32) {
+        (r & (WIDE_MAX_BLOCKS - 1), ((r >> 28) & 7) + 1)
+    }
 }
 
 /// `BLOCK_WIDTH` consecutive entries of the leaf index list, transposed so that one SIMD lane

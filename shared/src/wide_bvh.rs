@@ -19,9 +19,7 @@
 //! against the slab instead.
 use crate::glam::Vec3;
 use crate::kdtree::{ray_in_box, test_block_run, Hit};
-use crate::layout::{
-    WIDE_LEAF_BIT as LEAF_BIT, WIDE_MAX_BLOCKS as MAX_BLOCKS, WIDE_MAX_DEPTH as MAX_DEPTH, WIDE_WIDTH as WIDTH,
-};
+use crate::layout::{WideNode, WIDE_LEAF_BIT as LEAF_BIT, WIDE_MAX_DEPTH as MAX_DEPTH, WIDE_WIDTH as WIDTH};
 use crate::numerics::T_SLACK;
 use crate::scene::SceneView;
 use crate::triangle::RayShear;
@@ -176,8 +174,7 @@ fn traverse_with<const MASKS: bool>(scene: &SceneView, origin: Vec3, dir: Vec3, 
                 }
             }
         } else {
-            let k = child & (MAX_BLOCKS - 1);
-            let count = ((child >> 28) & 7) + 1;
+            let (k, count) = WideNode::leaf_of(child);
             tests += count;
             if test_block_run::<MASKS, true>(scene, tree.blocks, tree.indices, k, k + 1, &shear, &mut best, any_hit) {
                 break;

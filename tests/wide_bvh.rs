@@ -94,8 +94,9 @@ fn mesh_case(rel: &str, seed: u64) {
     let (rays, hits) = check_rays(&c, &random_rays(&c, 100_000, seed));
     assert!(hits > rays / 3, "{rel}: only {hits} of {rays} rays hit: the test would prove little");
     eprintln!(
-        "{rel}: {} triangles, {} wide nodes, depth {}, {rays} rays, {hits} hits, all equal to brute force",
+        "{rel}: {} triangles, {} references, {} wide nodes, depth {}, {rays} rays, {hits} hits, all equal to brute force",
         c.scene.triangles.len(),
+        c.wide_bvh().references,
         c.wide_bvh().nodes.len(),
         c.wide_bvh().depth()
     );
@@ -114,6 +115,47 @@ fn dragon_matches_brute_force() {
 #[test]
 fn cornell_box_original_matches_brute_force() {
     mesh_case("CornellBox-Original/CornellBox-Original.obj", 3);
+}
+
+/// A room of long, thin wall strips, tilted a little off the axes, around a cloud of small
+/// triangles: spatial splits cut the strips, so a triangle sits in several leaves, each with the
+/// box of its part only. No ray may slip between the parts, find a triangle twice to a different
+/// answer, or lose a tie.
+#[test]
+fn a_room_cut_by_spatial_splits_matches_brute_force() {
+    use kdtrace::scene::{diffuse, Scene};
+    use shared::layout::Triangle;
+    let mut rng = Pcg64::seed_from_u64(11);
+    let tilt = |p: Vec3| Vec3::new(p.x + 0.013 * p.y, p.y + 0.007 * p.z, p.z + 0.011 * p.x);
+    let tri = |a: Vec3, b: Vec3, c: Vec3| Triangle {
+        v0: tilt(a).extend(0.0),
+        v1: tilt(b).extend(0.0),
+        v2: tilt(c).extend(0.0),
+    };
+    let mut tris = Vec::new();
+    for k in 0..24 {
+        let (z0, z1) = (k as f32 / 24.0 * 10.0, (k + 1) as f32 / 24.0 * 10.0);
+        for y in [0.0, 10.0] {
+            tris.push(tri(Vec3::new(0.0, y, z0), Vec3::new(10.0, y, z0), Vec3::new(10.0, y, z1)));
+            tris.push(tri(Vec3::new(0.0, y, z0), Vec3::new(10.0, y, z1), Vec3::new(0.0, y, z1)));
+        }
+        for x in [0.0, 10.0] {
+            tris.push(tri(Vec3::new(x, 0.0, z0), Vec3::new(x, 10.0, z0), Vec3::new(x, 10.0, z1)));
+            tris.push(tri(Vec3::new(x, 0.0, z0), Vec3::new(x, 10.0, z1), Vec3::new(x, 0.0, z1)));
+        }
+    }
+    for _ in 0..3000 {
+        let p = Vec3::new(rng.random_range(1.0..9.0), rng.random_range(1.0..9.0), rng.random_range(1.0..9.0));
+        tris.push(tri(p, p + random_unit(&mut rng) * 0.2, p + random_unit(&mut rng) * 0.2));
+    }
+    let n = tris.len();
+    let scene = Scene::new(tris, vec![0; n], vec![diffuse(Vec3::splat(0.5), Vec3::ZERO)], vec!["m".into()]).unwrap();
+    let c = compile(scene, BuildSettings::default());
+    let references = c.wide_bvh().references;
+    assert!(references > n + n / 50, "{references} references for {n} triangles: the walls were hardly cut");
+    let (rays, hits) = check_rays(&c, &random_rays(&c, 100_000, 12));
+    assert!(hits > rays / 2, "only {hits} of {rays} rays hit");
+    eprintln!("room: {n} triangles, {references} references, {rays} rays equal to brute force");
 }
 
 /// Rays along grid lines of a grid-aligned staircase: axis-parallel, through vertices, along

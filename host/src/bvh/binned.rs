@@ -1,11 +1,15 @@
 //! The binary BVH the wide tree is collapsed from: top-down, split by the surface area
-//! heuristic over 16 bins of the triangles' centroids per axis (Wald, "On fast Construction of
-//! SAH-based Bounding Volume Hierarchies", RT 2007), the two halves built in parallel.
+//! heuristic over 16 bins of the references' centroids per axis (Wald, "On fast Construction of
+//! SAH-based Bounding Volume Hierarchies", RT 2007), or, where that split leaves the children's
+//! boxes overlapping, at a plane that cuts the triangles straddling it (`spatial`), whichever
+//! costs less; the two halves are built in parallel.
 //!
-//! A leaf holds at most `LEAF_SIZE` triangles, one block of the CPU's eight-lane test: a node with
-//! more is always split, by the heuristic where it finds a split, else at the middle of its
-//! centroids' order. Below `SAH_DEPTH` every split is that middle one, so the depth stays below
+//! A reference is a triangle id and the box of the part of that triangle the node holds. A leaf
+//! holds at most `LEAF_SIZE` references, one block of the CPU's eight-lane test: a node with more
+//! is always split, by the heuristic where it finds a split, else at the middle of its centroids'
+//! order. Below `SAH_DEPTH` every split is that middle one, so the depth stays below
 //! `SAH_DEPTH` + log2(n) whatever the geometry.
+use super::spatial;
 use shared::glam::Vec3;
 
 /// Triangles a leaf may hold: a `TriBlock`.
@@ -14,18 +18,16 @@ const BINS: usize = 16;
 /// Depth below which splits stop looking at the heuristic.
 const SAH_DEPTH: u32 = 48;
 /// Triangles below which a node's two halves are built on this thread.
-const PARALLEL_MIN: usize = 4096;
-
-/// A triangle's box and the centre of that box.
-#[derive(Clone, Copy)]
-pub struct Prim {
-    pub lo: Vec3,
-    pub hi: Vec3,
-    pub centre: Vec3,
-}
+pub const PARALLEL_MIN: usize = 4096;
+/// The overlap of the object split's children, as a fraction of the root's area, above which a
+/// spatial split is looked for (Stich et al.'s α). Their 1e-5 finds the same tree on Sponza at
+/// twice the build time: the splits that matter are near the top.
+const OVERLAP: f32 = 1e-3;
+/// References that spatial splits may add, per triangle.
+pub const DUPLICATES: f32 = 0.3;
 
 /// A box that grows: empty until something is added.
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, Debug)]
 pub struct Aabb {
     pub lo: Vec3,
     pub hi: Vec3,
@@ -46,104 +48,178 @@ impl Aabb {
         let d = (self.hi - self.lo).max(Vec3::ZERO);
         d.x * d.y + d.y * d.z + d.z * d.x
     }
+
+    /// The common part; empty (`is_empty`) where the boxes are apart.
+    #[inline]
+    pub fn intersect(&self, o: &Aabb) -> Aabb {
+        Aabb { lo: self.lo.max(o.lo), hi: self.hi.min(o.hi) }
+    }
+
+    /// True when no point is inside (a point or a flat box is not empty).
+    #[inline]
+    pub fn is_empty(&self) -> bool {
+        !(self.lo.x <= self.hi.x && self.lo.y <= self.hi.y && self.lo.z <= self.hi.z)
+    }
+
+    #[inline]
+    pub fn centre(&self) -> Vec3 {
+        (self.lo + self.hi) * 0.5
+    }
 }
 
-/// A node of the binary tree: its box, and either a run of the id list or two children.
+/// A triangle id and the box of the part of it that a node holds.
+#[derive(Clone, Copy, Debug)]
+pub struct Ref {
+    pub id: u32,
+    pub b: Aabb,
+}
+
+/// What the builder reads: every triangle's corners and the root's area.
+pub struct Input<'a> {
+    pub tris: &'a [[Vec3; 3]],
+    pub root_area: f32,
+}
+
+/// A node of the binary tree: its box, and either the triangle ids of a leaf or two children.
 pub struct Node2 {
     pub bounds: Aabb,
     pub kind: Kind,
 }
 
 pub enum Kind {
-    Leaf { start: u32, count: u32 },
+    Leaf { ids: Vec<u32> },
     Inner(Box<[Node2; 2]>),
 }
 
-/// Builds the tree over `ids` (a permutation of triangle ids, reordered in place so that every
-/// leaf is a run of it); `start` is the position of `ids[0]` in the whole list.
-pub fn build(prims: &[Prim], ids: &mut [u32], start: u32, depth: u32) -> Node2 {
+/// Builds the tree over `refs`; spatial splits may add at most `budget` references below.
+pub fn build(input: &Input, mut refs: Vec<Ref>, depth: u32, budget: usize) -> Node2 {
     let mut bounds = Aabb::EMPTY;
     let mut centres = Aabb::EMPTY;
-    for &id in ids.iter() {
-        let p = &prims[id as usize];
-        bounds.grow(p.lo, p.hi);
-        centres.grow(p.centre, p.centre);
+    for r in refs.iter() {
+        bounds.grow(r.b.lo, r.b.hi);
+        centres.grow(r.b.centre(), r.b.centre());
     }
-    if ids.len() <= LEAF_SIZE {
-        return Node2 { bounds, kind: Kind::Leaf { start, count: ids.len() as u32 } };
+    if refs.len() <= LEAF_SIZE {
+        return Node2 { bounds, kind: Kind::Leaf { ids: refs.iter().map(|r| r.id).collect() } };
     }
-    let mid = if depth < SAH_DEPTH { sah_split(prims, ids, &centres) } else { None };
-    let mid = mid.unwrap_or_else(|| middle_split(prims, ids, &centres));
-    let (left, right) = ids.split_at_mut(mid);
-    let right_start = start + mid as u32;
-    let (a, b) = if left.len() + right.len() >= PARALLEL_MIN {
-        rayon::join(|| build(prims, left, start, depth + 1), || build(prims, right, right_start, depth + 1))
+    let n = refs.len();
+    let object = if depth < SAH_DEPTH { object_split(&refs, &centres) } else { None };
+    let spatial = match object {
+        Some(o) if o.overlap > OVERLAP * input.root_area => {
+            { spatial::find(input.tris, &refs, &bounds, budget, n >= PARALLEL_MIN) }.filter(|s| s.cost < o.cost)
+        }
+        _ => None,
+    };
+    // A spatial split whose cuts fell otherwise than its bins foretold (rounding at a bin's
+    // border) and left a side empty or whole is dropped for the object split.
+    let cut = spatial
+        .map(|s| spatial::partition(input.tris, &refs, s))
+        .filter(|(l, r)| !l.is_empty() && !r.is_empty() && l.len() < n && r.len() < n);
+    let (left, right) = match cut {
+        Some(sides) => sides,
+        None => {
+            let mid = object.map_or(0, |o| partition_by_bin(&mut refs, &centres, o));
+            let mid = if mid == 0 || mid == n { middle_split(&mut refs, &centres) } else { mid };
+            let right = refs.split_off(mid);
+            (refs, right)
+        }
+    };
+    // What the split did not spend goes to the two sides in proportion to their size.
+    let left_over = budget.saturating_sub(left.len() + right.len() - n);
+    let left_budget = left_over * left.len() / (left.len() + right.len());
+    let right_budget = left_over - left_budget;
+    let (a, b) = if n >= PARALLEL_MIN {
+        rayon::join(|| build(input, left, depth + 1, left_budget), || build(input, right, depth + 1, right_budget))
     } else {
-        (build(prims, left, start, depth + 1), build(prims, right, right_start, depth + 1))
+        (build(input, left, depth + 1, left_budget), build(input, right, depth + 1, right_budget))
     };
     Node2 { bounds, kind: Kind::Inner(Box::new([a, b])) }
 }
 
-/// The heuristic's best split over the bins of each axis: partitions `ids` and returns the size
-/// of the left part, or `None` when the centroids do not separate.
-fn sah_split(prims: &[Prim], ids: &mut [u32], centres: &Aabb) -> Option<usize> {
-    let extent = centres.hi - centres.lo;
-    let mut best: Option<(f32, usize, usize)> = None; // (cost, axis, bins on the left)
-    for axis in 0..3 {
-        let (lo, ext) = (centres.lo[axis], extent[axis]);
-        if !(ext > 0.0) {
+/// The heuristic's best split over the centroid bins of one axis, and how much its two
+/// children's boxes overlap (half area).
+#[derive(Clone, Copy)]
+struct ObjectSplit {
+    cost: f32,
+    axis: usize,
+    bin: usize,
+    overlap: f32,
+}
+
+/// The best object split over the bins of each axis, or `None` when the centroids do not
+/// separate.
+fn object_split(refs: &[Ref], centres: &Aabb) -> Option<ObjectSplit> {
+    let per_axis = |axis: usize| object_split_on(refs, centres, axis);
+    let best = if refs.len() >= PARALLEL_MIN {
+        use rayon::prelude::*;
+        (0..3).into_par_iter().map(per_axis).collect::<Vec<_>>()
+    } else {
+        (0..3).map(per_axis).collect()
+    };
+    let (mut s, l, r) = best.into_iter().flatten().reduce(|a, b| if b.0.cost < a.0.cost { b } else { a })?;
+    let common = l.intersect(&r);
+    s.overlap = if common.is_empty() { 0.0 } else { common.half_area() };
+    Some(s)
+}
+
+/// The best object split on one axis, with its children's boxes.
+fn object_split_on(refs: &[Ref], centres: &Aabb, axis: usize) -> Option<(ObjectSplit, Aabb, Aabb)> {
+    let (lo, ext) = (centres.lo[axis], centres.hi[axis] - centres.lo[axis]);
+    if !(ext > 0.0) {
+        return None;
+    }
+    let scale = BINS as f32 / ext;
+    let mut boxes = [Aabb::EMPTY; BINS];
+    let mut counts = [0usize; BINS];
+    for r in refs {
+        let b = (((r.b.centre()[axis] - lo) * scale) as usize).min(BINS - 1);
+        boxes[b].grow(r.b.lo, r.b.hi);
+        counts[b] += 1;
+    }
+    // Sweep from the right, then from the left: cost = A_L·N_L + A_R·N_R.
+    let mut right_box = [Aabb::EMPTY; BINS];
+    let mut acc = Aabb::EMPTY;
+    for b in (1..BINS).rev() {
+        acc.grow(boxes[b].lo, boxes[b].hi);
+        right_box[b] = acc;
+    }
+    let mut best: Option<(ObjectSplit, Aabb, Aabb)> = None;
+    let mut left = Aabb::EMPTY;
+    let mut n_left = 0usize;
+    for b in 0..BINS - 1 {
+        left.grow(boxes[b].lo, boxes[b].hi);
+        n_left += counts[b];
+        let n_right = refs.len() - n_left;
+        if n_left == 0 || n_right == 0 {
             continue;
         }
-        let scale = BINS as f32 / ext;
-        let mut boxes = [Aabb::EMPTY; BINS];
-        let mut counts = [0usize; BINS];
-        for &id in ids.iter() {
-            let p = &prims[id as usize];
-            let b = (((p.centre[axis] - lo) * scale) as usize).min(BINS - 1);
-            boxes[b].grow(p.lo, p.hi);
-            counts[b] += 1;
-        }
-        // Sweep from the right, then from the left: cost = A_L·N_L + A_R·N_R.
-        let mut right_area = [0.0f32; BINS];
-        let mut acc = Aabb::EMPTY;
-        for b in (1..BINS).rev() {
-            acc.grow(boxes[b].lo, boxes[b].hi);
-            right_area[b] = acc.half_area();
-        }
-        let mut left = Aabb::EMPTY;
-        let mut n_left = 0usize;
-        for b in 0..BINS - 1 {
-            left.grow(boxes[b].lo, boxes[b].hi);
-            n_left += counts[b];
-            let n_right = ids.len() - n_left;
-            if n_left == 0 || n_right == 0 {
-                continue;
-            }
-            let cost = left.half_area() * n_left as f32 + right_area[b + 1] * n_right as f32;
-            if best.is_none_or(|(c, _, _)| cost < c) {
-                best = Some((cost, axis, b + 1));
-            }
+        let cost = left.half_area() * n_left as f32 + right_box[b + 1].half_area() * n_right as f32;
+        if best.as_ref().is_none_or(|(s, _, _)| cost < s.cost) {
+            best = Some((ObjectSplit { cost, axis, bin: b + 1, overlap: 0.0 }, left, right_box[b + 1]));
         }
     }
-    let (_, axis, split_bin) = best?;
-    let (lo, scale) = (centres.lo[axis], BINS as f32 / extent[axis]);
-    let left_of = |id: u32| (((prims[id as usize].centre[axis] - lo) * scale) as usize).min(BINS - 1) < split_bin;
-    // In-place partition.
-    let (mut i, mut j) = (0usize, ids.len());
+    best
+}
+
+/// Partitions `refs` in place by the split's bin; returns the size of the left part.
+fn partition_by_bin(refs: &mut [Ref], centres: &Aabb, s: ObjectSplit) -> usize {
+    let (lo, scale) = (centres.lo[s.axis], BINS as f32 / (centres.hi[s.axis] - centres.lo[s.axis]));
+    let left_of = |r: &Ref| (((r.b.centre()[s.axis] - lo) * scale) as usize).min(BINS - 1) < s.bin;
+    let (mut i, mut j) = (0usize, refs.len());
     while i < j {
-        if left_of(ids[i]) {
+        if left_of(&refs[i]) {
             i += 1;
         } else {
             j -= 1;
-            ids.swap(i, j);
+            refs.swap(i, j);
         }
     }
-    (i > 0 && i < ids.len()).then_some(i)
+    i
 }
 
 /// Splits at the middle of the centroids' order along the widest axis (ties by id, so the
 /// tree does not depend on the input order's accidents).
-fn middle_split(prims: &[Prim], ids: &mut [u32], centres: &Aabb) -> usize {
+fn middle_split(refs: &mut [Ref], centres: &Aabb) -> usize {
     let extent = centres.hi - centres.lo;
     let axis = if extent.x >= extent.y && extent.x >= extent.z {
         0
@@ -152,10 +228,10 @@ fn middle_split(prims: &[Prim], ids: &mut [u32], centres: &Aabb) -> usize {
     } else {
         2
     };
-    let mid = ids.len() / 2;
-    ids.select_nth_unstable_by(mid, |&a, &b| {
-        let (ca, cb) = (prims[a as usize].centre[axis], prims[b as usize].centre[axis]);
-        ca.total_cmp(&cb).then(a.cmp(&b))
+    let mid = refs.len() / 2;
+    refs.select_nth_unstable_by(mid, |a, b| {
+        let (ca, cb) = (a.b.centre()[axis], b.b.centre()[axis]);
+        ca.total_cmp(&cb).then(a.id.cmp(&b.id))
     });
     mid
 }
@@ -171,31 +247,41 @@ mod tests {
         }
     }
 
-    fn leaves(n: &Node2, out: &mut Vec<(u32, u32)>) {
+    fn leaves<'a>(n: &'a Node2, out: &mut Vec<(&'a [u32], Aabb)>) {
         match &n.kind {
-            Kind::Leaf { start, count } => out.push((*start, *count)),
+            Kind::Leaf { ids } => out.push((ids, n.bounds)),
             Kind::Inner(kids) => kids.iter().for_each(|k| leaves(k, out)),
         }
     }
 
+    /// The tree over all of `tris`, entered at `depth`, with `budget` references to spare.
+    fn build_all(tris: &[[Vec3; 3]], depth: u32, budget: usize) -> Node2 {
+        let refs: Vec<Ref> = tris
+            .iter()
+            .enumerate()
+            .map(|(id, &[a, b, c])| Ref { id: id as u32, b: Aabb { lo: a.min(b).min(c), hi: a.max(b).max(c) } })
+            .collect();
+        let mut root = Aabb::EMPTY;
+        refs.iter().for_each(|r| root.grow(r.b.lo, r.b.hi));
+        build(&Input { tris, root_area: root.half_area() }, refs, depth, budget)
+    }
+
     /// Triangles at exponentially growing distances: the best SAH plane peels the few farthest
     /// off at each split, a chain far deeper than a balanced tree, yet within the bound; past
-    /// `SAH_DEPTH` (the build entered there) the middle splits are balanced. Every triangle lands
-    /// in exactly one leaf of at most `LEAF_SIZE`.
+    /// `SAH_DEPTH` (the build entered there) the middle splits are balanced. Without a budget for
+    /// spatial splits every triangle lands in exactly one leaf of at most `LEAF_SIZE`.
     #[test]
     fn a_chain_of_peeled_triangles_stays_within_the_depth_bound() {
         let n = 300usize;
-        let prims: Vec<Prim> = (0..n)
+        let tris: Vec<[Vec3; 3]> = (0..n)
             .map(|i| {
                 let x = 1.3f32.powi(i as i32);
-                let (lo, hi) = (Vec3::new(x, 0.0, 0.0), Vec3::new(x * 1.001, 1.0, 0.0));
-                Prim { lo, hi, centre: (lo + hi) * 0.5 }
+                [Vec3::new(x, 0.0, 0.0), Vec3::new(x * 1.001, 1.0, 0.0), Vec3::new(x, 1.0, 0.0)]
             })
             .collect();
         let balanced = (n as f32 / LEAF_SIZE as f32).log2().ceil() as u32 + 1;
         for start in [0, SAH_DEPTH] {
-            let mut ids: Vec<u32> = (0..n as u32).collect();
-            let root = build(&prims, &mut ids, 0, start);
+            let root = build_all(&tris, start, 0);
             let d = depth(&root);
             if start == 0 {
                 assert!(d > balanced + 4, "depth {d}: the heuristic did not chain, the test proves nothing");
@@ -205,11 +291,76 @@ mod tests {
             }
             let mut runs = Vec::new();
             leaves(&root, &mut runs);
-            assert!(runs.iter().all(|&(_, c)| (1..=LEAF_SIZE as u32).contains(&c)));
-            let mut seen: Vec<u32> =
-                runs.iter().flat_map(|&(s, c)| ids[s as usize..(s + c) as usize].to_vec()).collect();
+            assert!(runs.iter().all(|(ids, _)| (1..=LEAF_SIZE).contains(&ids.len())));
+            let mut seen: Vec<u32> = runs.iter().flat_map(|(ids, _)| ids.to_vec()).collect();
             seen.sort_unstable();
             assert_eq!(seen, (0..n as u32).collect::<Vec<_>>(), "every triangle in exactly one leaf");
+        }
+    }
+
+    /// Long walls around a grid of small triangles: object splits would leave the walls in boxes
+    /// as large as the room, so spatial splits cut them. The copies stay within the budget, no
+    /// leaf holds a triangle twice, every triangle is in some leaf, and every point of a wall is
+    /// in the box of one of the leaves that hold it.
+    #[test]
+    fn spatial_splits_cut_long_walls_within_the_budget() {
+        let mut tris = Vec::new();
+        // Floor, ceiling and two walls, each of 16 strips (two triangles each) spanning the room.
+        for k in 0..16 {
+            let (z0, z1) = (k as f32 * 0.625, (k + 1) as f32 * 0.625);
+            for y in [0.0, 10.0] {
+                tris.push([Vec3::new(0.0, y, z0), Vec3::new(10.0, y, z0), Vec3::new(10.0, y, z1)]);
+                tris.push([Vec3::new(0.0, y, z0), Vec3::new(10.0, y, z1), Vec3::new(0.0, y, z1)]);
+            }
+            for x in [0.0, 10.0] {
+                tris.push([Vec3::new(x, 0.0, z0), Vec3::new(x, 10.0, z0), Vec3::new(x, 10.0, z1)]);
+                tris.push([Vec3::new(x, 0.0, z0), Vec3::new(x, 10.0, z1), Vec3::new(x, 0.0, z1)]);
+            }
+        }
+        let walls = tris.len();
+        for i in 0..40 {
+            for j in 0..40 {
+                let p = Vec3::new(0.5 + i as f32 * 0.23, 5.0 + ((i * j) % 7) as f32 * 0.3, 0.5 + j as f32 * 0.23);
+                tris.push([p, p + Vec3::new(0.1, 0.0, 0.0), p + Vec3::new(0.0, 0.1, 0.05)]);
+            }
+        }
+        let budget = (DUPLICATES * tris.len() as f32) as usize;
+        let root = build_all(&tris, 0, budget);
+        let mut runs = Vec::new();
+        leaves(&root, &mut runs);
+        let references: usize = runs.iter().map(|(ids, _)| ids.len()).sum();
+        assert!(references > tris.len(), "{references} references: no wall was cut");
+        assert!(references <= tris.len() + budget, "{references} references exceed the budget");
+        for (ids, _) in &runs {
+            let mut sorted = ids.to_vec();
+            sorted.sort_unstable();
+            sorted.dedup();
+            assert_eq!(sorted.len(), ids.len(), "a triangle twice in one leaf");
+        }
+        let mut seen: Vec<u32> = runs.iter().flat_map(|(ids, _)| ids.to_vec()).collect();
+        seen.sort_unstable();
+        seen.dedup();
+        assert_eq!(seen.len(), tris.len(), "a triangle in no leaf");
+        for (id, tri) in tris.iter().enumerate().take(walls) {
+            let boxes: Vec<Aabb> = runs.iter().filter(|(ids, _)| ids.contains(&(id as u32))).map(|r| r.1).collect();
+            for i in 0..=50 {
+                for j in 0..=50 - i {
+                    // The point in f64 (f32 arithmetic would put it off the wall's plane), kept in
+                    // the triangle's box against the last bit of rounding.
+                    let (u, v) = (i as f64 / 50.0, j as f64 / 50.0);
+                    let p: [f64; 3] = core::array::from_fn(|a| {
+                        let x = (1.0 - u - v) * tri[0][a] as f64 + u * tri[1][a] as f64 + v * tri[2][a] as f64;
+                        let (lo, hi) =
+                            (tri[0][a].min(tri[1][a]).min(tri[2][a]), tri[0][a].max(tri[1][a]).max(tri[2][a]));
+                        x.clamp(lo as f64, hi as f64)
+                    });
+                    assert!(
+                        boxes.iter().any(|b| (0..3).all(|a| b.lo[a] as f64 <= p[a] && p[a] <= b.hi[a] as f64)),
+                        "wall {id}: point {p:?} in none of its {} leaves' boxes",
+                        boxes.len()
+                    );
+                }
+            }
         }
     }
 }

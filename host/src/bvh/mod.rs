@@ -1,12 +1,13 @@
 //! The CPU's eight-wide BVH (`shared::wide_bvh`): a binary tree built by the binned surface area
-//! heuristic (`binned`), collapsed into nodes of up to eight children by opening, again and
+//! heuristic (`binned`) with spatial splits (`spatial`), collapsed into nodes of up to eight children by opening, again and
 //! again, the child of largest surface area (Wald, Benthin & Boulos, "Getting Rid of Packets",
 //! RT 2008), its leaves laid out as blocks of the eight-lane triangle test.
 //!
 //! The GPU keeps the k-d tree: a GPU thread would test a node's eight boxes one after another.
 mod binned;
+mod spatial;
 
-use binned::{Kind, Node2, Prim};
+use binned::{Aabb, Input, Kind, Node2, Ref};
 use rayon::prelude::*;
 use shared::glam::Vec3;
 use shared::layout::{TriBlock, Triangle, BLOCK_WIDTH};
@@ -22,6 +23,8 @@ pub struct WideBvh {
     pub nodes: Vec<WideNode>,
     pub blocks: Vec<TriBlock>,
     pub indices: Vec<u32>,
+    /// Triangle references in the leaves: the triangles, and the copies spatial splits made.
+    pub references: usize,
 }
 
 impl WideBvh {
@@ -54,16 +57,17 @@ pub fn build(triangles: &[Triangle]) -> WideBvh {
     if triangles.is_empty() {
         return WideBvh::default();
     }
-    let prims: Vec<Prim> = triangles
+    let tris: Vec<[Vec3; 3]> = triangles.par_iter().map(|t| [xyz(t.v0), xyz(t.v1), xyz(t.v2)]).collect();
+    let refs: Vec<Ref> = tris
         .par_iter()
-        .map(|t| {
-            let (a, b, c) = (xyz(t.v0), xyz(t.v1), xyz(t.v2));
-            let (lo, hi) = (a.min(b).min(c), a.max(b).max(c));
-            Prim { lo, hi, centre: (lo + hi) * 0.5 }
-        })
+        .enumerate()
+        .map(|(id, &[a, b, c])| Ref { id: id as u32, b: Aabb { lo: a.min(b).min(c), hi: a.max(b).max(c) } })
         .collect();
-    let mut ids: Vec<u32> = (0..triangles.len() as u32).collect();
-    let root = binned::build(&prims, &mut ids, 0, 0);
+    let mut root_box = Aabb::EMPTY;
+    refs.iter().for_each(|r| root_box.grow(r.b.lo, r.b.hi));
+    let input = Input { tris: &tris, root_area: root_box.half_area() };
+    let budget = (binned::DUPLICATES * refs.len() as f32) as usize;
+    let root = binned::build(&input, refs, 0, budget);
     let mut out = WideBvh::default();
     let mut leaves = Vec::new();
     if let Kind::Leaf { .. } = root.kind {
@@ -76,11 +80,12 @@ pub fn build(triangles: &[Triangle]) -> WideBvh {
     }
     assert!(leaves.len() < MAX_BLOCKS as usize, "the wide BVH holds at most {MAX_BLOCKS} leaves");
     let width = BLOCK_WIDTH as usize;
+    out.references = leaves.iter().map(|ids| ids.len()).sum();
     out.indices = leaves
         .iter()
-        .flat_map(|&(start, count)| {
+        .flat_map(|ids| {
             // Ascending ids: the leaf test's tie rule relies on it.
-            let mut run = ids[start as usize..(start + count) as usize].to_vec();
+            let mut run = ids.to_vec();
             run.sort_unstable();
             (0..width).map(move |l| run[l.min(run.len() - 1)])
         })
@@ -110,11 +115,11 @@ fn set_lane(n: &mut WideNode, lane: usize, child: &Node2, reference: u32) {
 }
 
 /// Emits `n` (an inner node, or a leaf) and everything below it; returns its reference.
-fn emit(n: &Node2, nodes: &mut Vec<WideNode>, leaves: &mut Vec<(u32, u32)>) -> u32 {
+fn emit<'a>(n: &'a Node2, nodes: &mut Vec<WideNode>, leaves: &mut Vec<&'a [u32]>) -> u32 {
     let kids = match &n.kind {
-        Kind::Leaf { start, count } => {
-            leaves.push((*start, *count));
-            return WideNode::leaf_ref(leaves.len() as u32 - 1, *count);
+        Kind::Leaf { ids } => {
+            leaves.push(ids);
+            return WideNode::leaf_ref(leaves.len() as u32 - 1, ids.len() as u32);
         }
         Kind::Inner(kids) => kids,
     };

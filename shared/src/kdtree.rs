@@ -151,6 +151,16 @@ pub(crate) struct RayStart {
     pub t_exit: f32,
 }
 
+/// The direction with denormals flushed, or `None` for a ray that cannot hit anything: a
+/// non-finite origin or direction, or a zero direction. What brute force and the wide BVH check
+/// before anything else (the BVH's root boxes stand for the scene box).
+#[inline(always)]
+pub(crate) fn usable_direction(origin: Vec3, dir: Vec3) -> Option<Vec3> {
+    let dir = flush_denormals(dir);
+    let zero_dir = (dir.x == 0.0) & (dir.y == 0.0) & (dir.z == 0.0);
+    (is_finite3(origin) & is_finite3(dir) & !zero_dir).then_some(dir)
+}
+
 /// `None` for a ray that cannot hit anything: non-finite origin or direction, zero direction, an
 /// empty tree, or a ray that misses the scene box within (0, t_max).
 ///
@@ -528,12 +538,8 @@ fn traverse_with<const MASKS: bool, R: Recorder>(
 
 /// Tests every triangle: the reference the tree must reproduce exactly.
 pub fn intersect_brute_force(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32) -> Hit {
-    let dir = flush_denormals(dir);
     let mut best = Hit::miss(t_max);
-    let zero_dir = (dir.x == 0.0) & (dir.y == 0.0) & (dir.z == 0.0);
-    if !is_finite3(origin) | !is_finite3(dir) | zero_dir {
-        return best;
-    }
+    let Some(dir) = usable_direction(origin, dir) else { return best };
     let shear = RayShear::new(origin, dir);
     let mut id = 0;
     while id < scene.triangles.len() {

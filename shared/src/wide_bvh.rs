@@ -18,7 +18,7 @@
 //! on that axis, which would be `0·∞ = NaN` for a ray in a box's face: its origin is tested
 //! against the slab instead.
 use crate::glam::Vec3;
-use crate::kdtree::{ray_in_box, test_block_run, Hit};
+use crate::kdtree::{test_block_run, usable_direction, Hit};
 use crate::layout::{WideNode, WIDE_LEAF_BIT as LEAF_BIT, WIDE_MAX_DEPTH as MAX_DEPTH, WIDE_WIDTH as WIDTH};
 use crate::numerics::T_SLACK;
 use crate::scene::SceneView;
@@ -69,8 +69,8 @@ fn traverse_with<const MASKS: bool>(scene: &SceneView, origin: Vec3, dir: Vec3, 
     if tree.nodes.is_empty() {
         return best;
     }
-    let Some(ray) = ray_in_box(scene, origin, dir, t_max) else { return best };
-    let shear = RayShear::new(origin, ray.dir);
+    let Some(dir) = usable_direction(origin, dir) else { return best };
+    let shear = RayShear::new(origin, dir);
     // Per axis: the origin, the reciprocal, which of a node's bound rows is the near one (the
     // lower for a positive direction) and whether the ray is parallel to the axis's planes.
     let mut o = [Lanes::splat(0.0); 3];
@@ -78,7 +78,7 @@ fn traverse_with<const MASKS: bool>(scene: &SceneView, origin: Vec3, dir: Vec3, 
     let mut near = [0usize; 3];
     let mut flat = [false; 3];
     for a in 0..3 {
-        let d = axis(ray.dir, a as u32);
+        let d = axis(dir, a as u32);
         o[a] = Lanes::splat(axis(origin, a as u32));
         flat[a] = d == 0.0;
         r[a] = Lanes::splat(if flat[a] { 0.0 } else { 1.0 / d });

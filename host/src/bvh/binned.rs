@@ -9,6 +9,7 @@
 //! is always split, by the heuristic where it finds a split, else at the middle of its centroids'
 //! order. Below `SAH_DEPTH` every split is that middle one, so the depth stays below
 //! `SAH_DEPTH` + log2(n) whatever the geometry.
+use super::reference::{Aabb, Ref};
 use super::spatial;
 use shared::glam::Vec3;
 
@@ -26,54 +27,6 @@ const OVERLAP: f32 = 1e-3;
 /// References that spatial splits may add, per triangle.
 pub const DUPLICATES: f32 = 0.3;
 
-/// A box that grows: empty until something is added.
-#[derive(Clone, Copy, Debug)]
-pub struct Aabb {
-    pub lo: Vec3,
-    pub hi: Vec3,
-}
-
-impl Aabb {
-    pub const EMPTY: Aabb = Aabb { lo: Vec3::splat(f32::INFINITY), hi: Vec3::splat(f32::NEG_INFINITY) };
-
-    #[inline]
-    pub fn grow(&mut self, lo: Vec3, hi: Vec3) {
-        self.lo = self.lo.min(lo);
-        self.hi = self.hi.max(hi);
-    }
-
-    /// Half the surface area; 0 for an empty box.
-    #[inline]
-    pub fn half_area(&self) -> f32 {
-        let d = (self.hi - self.lo).max(Vec3::ZERO);
-        d.x * d.y + d.y * d.z + d.z * d.x
-    }
-
-    /// The common part; empty (`is_empty`) where the boxes are apart.
-    #[inline]
-    pub fn intersect(&self, o: &Aabb) -> Aabb {
-        Aabb { lo: self.lo.max(o.lo), hi: self.hi.min(o.hi) }
-    }
-
-    /// True when no point is inside (a point or a flat box is not empty).
-    #[inline]
-    pub fn is_empty(&self) -> bool {
-        !(self.lo.x <= self.hi.x && self.lo.y <= self.hi.y && self.lo.z <= self.hi.z)
-    }
-
-    #[inline]
-    pub fn centre(&self) -> Vec3 {
-        (self.lo + self.hi) * 0.5
-    }
-}
-
-/// A triangle id and the box of the part of it that a node holds.
-#[derive(Clone, Copy, Debug)]
-pub struct Ref {
-    pub id: u32,
-    pub b: Aabb,
-}
-
 /// What the builder reads: every triangle's corners and the root's area.
 pub struct Input<'a> {
     pub tris: &'a [[Vec3; 3]],
@@ -89,6 +42,20 @@ pub struct Node2 {
 pub enum Kind {
     Leaf { ids: Vec<u32> },
     Inner(Box<[Node2; 2]>),
+}
+
+/// Builds the tree over all of `tris` (their ids are their positions) as if entered at `depth`;
+/// spatial splits may add at most `budget` references.
+pub fn build_all(tris: &[[Vec3; 3]], depth: u32, budget: usize) -> Node2 {
+    use rayon::prelude::*;
+    let refs: Vec<Ref> = tris
+        .par_iter()
+        .enumerate()
+        .map(|(id, &[a, b, c])| Ref { id: id as u32, b: Aabb { lo: a.min(b).min(c), hi: a.max(b).max(c) } })
+        .collect();
+    let mut root = Aabb::EMPTY;
+    refs.iter().for_each(|r| root.grow(r.b.lo, r.b.hi));
+    build(&Input { tris, root_area: root.half_area() }, refs, depth, budget)
 }
 
 /// Builds the tree over `refs`; spatial splits may add at most `budget` references below.
@@ -252,18 +219,6 @@ mod tests {
             Kind::Leaf { ids } => out.push((ids, n.bounds)),
             Kind::Inner(kids) => kids.iter().for_each(|k| leaves(k, out)),
         }
-    }
-
-    /// The tree over all of `tris`, entered at `depth`, with `budget` references to spare.
-    fn build_all(tris: &[[Vec3; 3]], depth: u32, budget: usize) -> Node2 {
-        let refs: Vec<Ref> = tris
-            .iter()
-            .enumerate()
-            .map(|(id, &[a, b, c])| Ref { id: id as u32, b: Aabb { lo: a.min(b).min(c), hi: a.max(b).max(c) } })
-            .collect();
-        let mut root = Aabb::EMPTY;
-        refs.iter().for_each(|r| root.grow(r.b.lo, r.b.hi));
-        build(&Input { tris, root_area: root.half_area() }, refs, depth, budget)
     }
 
     /// Triangles at exponentially growing distances: the best SAH plane peels the few farthest

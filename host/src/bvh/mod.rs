@@ -5,9 +5,10 @@
 //!
 //! The GPU keeps the k-d tree: a GPU thread would test a node's eight boxes one after another.
 mod binned;
+mod reference;
 mod spatial;
 
-use binned::{Aabb, Input, Kind, Node2, Ref};
+use binned::{Kind, Node2};
 use rayon::prelude::*;
 use shared::glam::Vec3;
 use shared::layout::{TriBlock, Triangle, BLOCK_WIDTH};
@@ -58,16 +59,8 @@ pub fn build(triangles: &[Triangle]) -> WideBvh {
         return WideBvh::default();
     }
     let tris: Vec<[Vec3; 3]> = triangles.par_iter().map(|t| [xyz(t.v0), xyz(t.v1), xyz(t.v2)]).collect();
-    let refs: Vec<Ref> = tris
-        .par_iter()
-        .enumerate()
-        .map(|(id, &[a, b, c])| Ref { id: id as u32, b: Aabb { lo: a.min(b).min(c), hi: a.max(b).max(c) } })
-        .collect();
-    let mut root_box = Aabb::EMPTY;
-    refs.iter().for_each(|r| root_box.grow(r.b.lo, r.b.hi));
-    let input = Input { tris: &tris, root_area: root_box.half_area() };
-    let budget = (binned::DUPLICATES * refs.len() as f32) as usize;
-    let root = binned::build(&input, refs, 0, budget);
+    let budget = (binned::DUPLICATES * tris.len() as f32) as usize;
+    let root = binned::build_all(&tris, 0, budget);
     let mut out = WideBvh::default();
     let mut leaves = Vec::new();
     if let Kind::Leaf { .. } = root.kind {

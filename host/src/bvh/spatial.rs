@@ -8,7 +8,7 @@
 //! closer hit and, at equal distance, the lower id, so the answer is unchanged. Each part's box
 //! must hold all of the triangle on its side, or a ray could pass the triangle by: the plane is
 //! exact, and the points where edges cross it are widened by more than their rounding error.
-use super::binned::{Aabb, Ref};
+use super::reference::{Aabb, Ref};
 use shared::glam::Vec3;
 
 /// Planes tried per axis: the bins' borders.

@@ -189,6 +189,15 @@ fn the_cpu_path_renders_on_its_wide_bvh() {
         let j: serde_json::Value = serde_json::from_slice(&o.stdout).expect("one JSON line");
         assert_eq!(j["traversal"], expected, "--traversal {flag}");
         assert!(j["build_s"].as_f64().unwrap() > 0.0);
+        // The BVH's size where it was built: every triangle in some leaf, at most eight a leaf.
+        let bvh = &j["wide_bvh"];
+        if expected == "wide" {
+            let (refs, leaves) = (bvh["references"].as_u64().unwrap(), bvh["leaves"].as_u64().unwrap());
+            assert!(refs >= j["triangles"].as_u64().unwrap() && refs <= 8 * leaves, "{bvh}");
+            assert!(bvh["nodes"].as_u64().unwrap() >= 1 && bvh["depth"].as_u64().unwrap() >= 1, "{bvh}");
+        } else {
+            assert!(bvh.is_null(), "--traversal {flag} built a BVH: {bvh}");
+        }
     }
 }
 

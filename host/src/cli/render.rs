@@ -134,6 +134,9 @@ struct RenderReport<'a> {
     samples_per_s: f64,
     zeroed_samples: u64,
     traversal: Traversal,
+    /// The CPU path's wide BVH, where it was built.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    wide_bvh: Option<WideBvhReport>,
     dispatch: Dispatch,
     aov: Aov,
     /// What the scene uses and which integrator variant rendered it.
@@ -145,6 +148,19 @@ struct RenderReport<'a> {
     mean_tests: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     mean_restarts: Option<f64>,
+}
+
+/// `render --json` `wide_bvh`: the CPU path's BVH (`crate::bvh`).
+#[derive(Serialize)]
+struct WideBvhReport {
+    /// Eight-wide nodes.
+    nodes: usize,
+    /// Leaves, one eight-lane triangle block each.
+    leaves: usize,
+    /// Triangle references in the leaves: the triangles and the copies spatial splits made.
+    references: usize,
+    /// Levels of nodes on the longest path.
+    depth: usize,
 }
 
 pub fn run(r: RenderArgs) -> Result<ExitCode> {
@@ -301,6 +317,12 @@ pub fn run(r: RenderArgs) -> Result<ExitCode> {
             samples_per_s: samples / run.render_s,
             zeroed_samples: img.zeroed_samples(),
             traversal: img.traversal,
+            wide_bvh: c.wide.get().map(|b| WideBvhReport {
+                nodes: b.nodes.len(),
+                leaves: b.blocks.len(),
+                references: b.references,
+                depth: b.depth(),
+            }),
             dispatch: s.dispatch,
             aov: s.aov,
             features: {

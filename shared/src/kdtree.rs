@@ -152,8 +152,8 @@ pub(crate) struct RayStart {
 }
 
 /// The direction with denormals flushed, or `None` for a ray that cannot hit anything: a
-/// non-finite origin or direction, or a zero direction. What brute force and the wide BVH check
-/// before anything else (the BVH's root boxes stand for the scene box).
+/// non-finite origin or direction, or a zero direction. What every traversal and brute force check
+/// first (`ray_in_box` then clips to the scene box; the wide BVH's root boxes stand for it).
 #[inline(always)]
 pub(crate) fn usable_direction(origin: Vec3, dir: Vec3) -> Option<Vec3> {
     let dir = flush_denormals(dir);
@@ -180,11 +180,7 @@ pub(crate) fn ray_start(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32) 
 #[cfg_attr(not(target_arch = "spirv"), inline(always))]
 #[cfg_attr(target_arch = "spirv", inline)]
 pub(crate) fn ray_in_box(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32) -> Option<RayStart> {
-    let dir = flush_denormals(dir);
-    let zero_dir = (dir.x == 0.0) & (dir.y == 0.0) & (dir.z == 0.0);
-    if !is_finite3(origin) | !is_finite3(dir) | zero_dir {
-        return None;
-    }
+    let dir = usable_direction(origin, dir)?;
     let inv = safe_reciprocal(dir);
     let (t_enter, t_exit) = clip_to_bounds(scene.bounds_min, scene.bounds_max, origin, dir, inv, 0.0, t_max)?;
     Some(RayStart { dir, inv, t_enter, t_exit })

@@ -18,7 +18,7 @@
 //! on that axis, which would be `0·∞ = NaN` for a ray in a box's face: its origin is tested
 //! against the slab instead.
 use crate::glam::Vec3;
-use crate::kdtree::{test_block_run, usable_direction, Hit};
+use crate::kdtree::{safe_reciprocal, test_block_run, usable_direction, Hit};
 use crate::layout::{WideNode, WIDE_LEAF_BIT as LEAF_BIT, WIDE_MAX_DEPTH as MAX_DEPTH, WIDE_WIDTH as WIDTH};
 use crate::numerics::T_SLACK;
 use crate::scene::SceneView;
@@ -77,11 +77,12 @@ fn traverse_with<const MASKS: bool>(scene: &SceneView, origin: Vec3, dir: Vec3, 
     let mut r = [Lanes::splat(0.0); 3];
     let mut near = [0usize; 3];
     let mut flat = [false; 3];
+    let inv = safe_reciprocal(dir);
     for a in 0..3 {
         let d = axis(dir, a as u32);
         o[a] = Lanes::splat(axis(origin, a as u32));
         flat[a] = d == 0.0;
-        r[a] = Lanes::splat(if flat[a] { 0.0 } else { 1.0 / d });
+        r[a] = Lanes::splat(axis(inv, a as u32));
         near[a] = if d < 0.0 { a + 3 } else { a };
     }
     let any_flat = flat[0] | flat[1] | flat[2];

@@ -19,7 +19,7 @@ const BINS: usize = 16;
 /// Depth below which splits stop looking at the heuristic.
 const SAH_DEPTH: u32 = 48;
 /// Triangles below which a node's two halves are built on this thread.
-pub const PARALLEL_MIN: usize = 4096;
+const PARALLEL_MIN: usize = 4096;
 /// The overlap of the object split's children, as a fraction of the root's area, above which a
 /// spatial split is looked for (Stich et al.'s α). Their 1e-5 finds the same tree on Sponza at
 /// twice the build time: the splits that matter are near the top.
@@ -73,7 +73,7 @@ pub fn build(input: &Input, mut refs: Vec<Ref>, depth: u32, budget: usize) -> No
     let object = if depth < SAH_DEPTH { object_split(&refs, &centres) } else { None };
     let spatial = match object {
         Some(o) if o.overlap > OVERLAP * input.root_area => {
-            { spatial::find(input.tris, &refs, &bounds, budget, n >= PARALLEL_MIN) }.filter(|s| s.cost < o.cost)
+            spatial::find(input.tris, &refs, &bounds, budget, n >= PARALLEL_MIN).filter(|s| s.cost < o.cost)
         }
         _ => None,
     };

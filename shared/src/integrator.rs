@@ -36,7 +36,6 @@ use crate::record::{
 use crate::rng::Sampler;
 use crate::sampling::{power_heuristic, remap_in_light, select_light, uniform_triangle};
 use crate::scene::SceneView;
-use crate::spherical_triangle::{plane_weights, SphericalTriangle};
 use crate::surface::{consistent, emission_at, hit_weights, material_at, shading_normal};
 #[cfg(not(target_arch = "spirv"))]
 use crate::surface::{looks_up_textures, resolve};
@@ -255,22 +254,9 @@ fn shade_vertex<R: Recorder>(
         let mut weight = 1.0;
         if (path.bounce > 0) & (info.light != NO_LIGHT) {
             let light = scene.lights[info.light as usize];
-            let ltri = &scene.triangles[hit.triangle as usize];
-            let spherical = SphericalTriangle::toward(
-                path.origin,
-                xyz(ltri.v0),
-                xyz(ltri.v1),
-                xyz(ltri.v2),
-                stored_normal(ltri),
-                light.area,
-            );
-            let light_pdf = if let Some(st) = spherical {
-                light.pmf / st.omega
-            } else {
-                let dist2 = hit.t * hit.t * length_squared(dir);
-                let cos_l = dot(n, normalize(dir)).abs();
-                light.pmf * dist2 / (cos_l * light.area)
-            };
+            let dist2 = hit.t * hit.t * length_squared(dir);
+            let cos_l = dot(n, normalize(dir)).abs();
+            let light_pdf = light.pmf * dist2 / (cos_l * light.area);
             weight = power_heuristic(path.bsdf_pdf, light_pdf);
         }
         let added = path.beta * le * weight;
@@ -325,25 +311,7 @@ fn shade_vertex<R: Recorder>(
             );
         } else {
             let ltri = &scene.triangles[light.triangle as usize];
-            // By solid angle where the light subtends enough of it, else by area
-            // (`spherical_triangle`); a degenerate spherical triangle falls back to area too.
-            let (l0, l1, l2) = (xyz(ltri.v0), xyz(ltri.v1), xyz(ltri.v2));
-            let spherical = SphericalTriangle::toward(pos, l0, l1, l2, stored_normal(ltri), light.area);
-            let mut omega = 0.0;
-            let mut weights = None;
-            if let Some(st) = spherical {
-                omega = st.omega;
-                if let Some(w) = st.sample(u1, u_light) {
-                    weights = plane_weights(pos, w, l0, l1, l2);
-                }
-            }
-            let (b0, b1, b2) = match weights {
-                Some(b) => b,
-                None => {
-                    omega = 0.0;
-                    uniform_triangle(u1, u_light)
-                }
-            };
+            let (b0, b1, b2) = uniform_triangle(u1, u_light);
             let on_light = interpolate(ltri, b0, b1, b2);
             let q = on_light.p;
             let nl = stored_normal(ltri);
@@ -363,7 +331,7 @@ fn shade_vertex<R: Recorder>(
                 contribution: Vec3::ZERO,
             };
             if (cos_l > 0.0) & (pdf_bsdf > 0.0) & (dist2 > 0.0) & consistent(v, nf, ns, wi) {
-                let light_pdf = if omega > 0.0 { light.pmf / omega } else { light.pmf * dist2 / (cos_l * light.area) };
+                let light_pdf = light.pmf * dist2 / (cos_l * light.area);
                 let target = offset_ray_origin(q, on_light.error, nl);
                 // A light behind a transmitting surface is seen through it: the shadow ray leaves
                 // from the far side.

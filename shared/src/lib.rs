@@ -32,7 +32,6 @@ pub mod sampling;
 pub mod scene;
 pub mod short_stack;
 pub mod sobol;
-pub mod spherical_triangle;
 pub mod surface;
 pub mod texture;
 pub mod triangle;

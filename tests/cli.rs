@@ -179,7 +179,8 @@ fn tiny_render(scene: &str, out: &Path, extra: &[&str]) -> std::process::Output 
     kdtrace(&args)
 }
 
-/// The CPU path renders on its wide BVH unless told otherwise, reports it, and counts its build.
+/// The CPU path renders on its wide BVH unless told otherwise, reports it, and counts its build;
+/// on the BVH it builds no k-d tree (no `nodes`), for `--traversal full` only the k-d tree.
 #[test]
 fn the_cpu_path_renders_on_its_wide_bvh() {
     let cornell = repo("scenes/cornell-box.obj");
@@ -195,8 +196,10 @@ fn the_cpu_path_renders_on_its_wide_bvh() {
             let (refs, leaves) = (bvh["references"].as_u64().unwrap(), bvh["leaves"].as_u64().unwrap());
             assert!(refs >= j["triangles"].as_u64().unwrap() && refs <= 8 * leaves, "{bvh}");
             assert!(bvh["nodes"].as_u64().unwrap() >= 1 && bvh["depth"].as_u64().unwrap() >= 1, "{bvh}");
+            assert!(j["nodes"].is_null() && j["tree_depth"].is_null(), "--traversal {flag} built a k-d tree: {j}");
         } else {
             assert!(bvh.is_null(), "--traversal {flag} built a BVH: {bvh}");
+            assert!(j["nodes"].as_u64().unwrap() >= 1 && j["tree_depth"].as_u64().unwrap() >= 1, "{j}");
         }
     }
 }

@@ -205,7 +205,7 @@ fn one_distribution_by_power_over_triangles_the_map_and_punctual_lights() {
     c.scene.punctual_lights = vec![PunctualLight::point(DVec3::new(0.0, 1.0, 0.0), Vec3::ONE, 2.0)];
     c.prepare_emitters();
     assert_eq!(c.light_count, 3);
-    let radius = 0.5 * (c.tree.bounds_max - c.tree.bounds_min).as_dvec3().length();
+    let radius = 0.5 * (c.tree().bounds_max - c.tree().bounds_min).as_dvec3().length();
     let power = [0.5 * 4.0, 4.0 * PI * PI * radius * radius * 0.5, 4.0 * PI * 2.0];
     let total: f64 = power.iter().sum();
     let mut cdf = 0.0;

@@ -36,11 +36,11 @@ fn assert_same(a: &Compiled, b: &Compiled) {
         (a.scene.bounds_min, a.scene.bounds_max, a.scene.dropped_degenerate),
         (b.scene.bounds_min, b.scene.bounds_max, b.scene.dropped_degenerate)
     );
-    assert_eq!(a.tree.nodes, b.tree.nodes);
-    assert_eq!(a.tree.indices, b.tree.indices);
+    assert_eq!(a.tree().nodes, b.tree().nodes);
+    assert_eq!(a.tree().indices, b.tree().indices);
     assert_eq!(
-        (a.tree.bounds_min, a.tree.bounds_max, a.tree.depth),
-        (b.tree.bounds_min, b.tree.bounds_max, b.tree.depth)
+        (a.tree().bounds_min, a.tree().bounds_max, a.tree().depth),
+        (b.tree().bounds_min, b.tree().bounds_max, b.tree().depth)
     );
     assert_eq!(a.origin, b.origin);
 }
@@ -63,9 +63,9 @@ fn a_far_scene_keeps_its_local_frame_through_a_kdc() {
     let origin = loaded.compiled.origin;
     assert!(origin.min_element() > 99_999.0, "not moved into a local frame: origin {origin}");
     assert!(
-        loaded.compiled.tree.bounds_max.abs().max_element() < 1.0,
+        loaded.compiled.tree().bounds_max.abs().max_element() < 1.0,
         "local bounds {:?}",
-        loaded.compiled.tree.bounds_max
+        loaded.compiled.tree().bounds_max
     );
     let path = tmp("far.kdc");
     kdc::write(&path, &loaded.compiled, &BuildSettings::default(), &loaded.settings).unwrap();
@@ -199,9 +199,9 @@ fn crafted_files_are_refused_behind_a_valid_checksum() {
     let c = &loaded.compiled;
     type Edit = Box<dyn Fn(&mut craft::Parts)>;
     let node = move |p: &craft::Parts, i: usize| craft::section_offset(p, 4) + 8 * i;
-    let first_interior = c.tree.nodes.iter().position(|n| !n.is_leaf()).unwrap();
-    let first_leaf = c.tree.nodes.iter().position(|n| n.is_leaf() && n.count() > 0).unwrap();
-    let ax = c.tree.nodes[first_interior].axis();
+    let first_interior = c.tree().nodes.iter().position(|n| !n.is_leaf()).unwrap();
+    let first_leaf = c.tree().nodes.iter().position(|n| n.is_leaf() && n.count() > 0).unwrap();
+    let ax = c.tree().nodes[first_interior].axis();
     let cases: Vec<(&str, Edit)> = vec![
         ("children", Box::new(move |p| craft::put_u32(p, node(p, first_interior) + 4, ax | (9999 << 2)))),
         (

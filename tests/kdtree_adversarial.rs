@@ -86,7 +86,7 @@ fn traversal_matches_brute_force(what: &str, tris: &[Triangle], rays: usize) {
     let params = c.bounds_params();
     let view = c.view(&params);
     // Flat scenes get origins off their plane: every axis spans at least the largest extent.
-    let (lo, hi) = (c.tree.bounds_min, c.tree.bounds_max);
+    let (lo, hi) = (c.tree().bounds_min, c.tree().bounds_max);
     let ext = (hi - lo).max(Vec3::splat((hi - lo).max_element()));
     let lo = (lo + hi) * 0.5 - ext * 0.5;
     let hits: usize = (0..rays)
@@ -228,10 +228,10 @@ fn check_exact(c: &Compiled, rays: &[(Vec3, Vec3)], what: &str) -> usize {
 fn rays_in_split_planes_and_from_triangle_edges_match_brute_force() {
     let scene = obj::load_obj(&mesh("dragon-23k/dragon.obj")).unwrap();
     let c = compile(scene, BuildSettings::default());
-    let (lo, hi) = (c.tree.bounds_min, c.tree.bounds_max);
+    let (lo, hi) = (c.tree().bounds_min, c.tree().bounds_max);
     let mut rng = Pcg64::seed_from_u64(11);
     let planes: Vec<(usize, f32)> =
-        c.tree.nodes.iter().filter(|n| !n.is_leaf()).map(|n| (n.axis() as usize, n.split())).collect();
+        c.tree().nodes.iter().filter(|n| !n.is_leaf()).map(|n| (n.axis() as usize, n.split())).collect();
     let mut rays = Vec::new();
     for _ in 0..20_000 {
         let (k, s) = planes[rng.random_range(0..planes.len())];
@@ -274,8 +274,8 @@ fn sah_tree_is_cheaper_than_the_median_tree() {
     let n = scene.triangles.len();
     let sah_settings = BuildSettings::default();
     let median_settings = BuildSettings { builder: Builder::Median, ..Default::default() };
-    let sah = stats(&compile(scene.clone(), sah_settings).tree, n, &sah_settings);
-    let median = stats(&compile(scene, median_settings).tree, n, &sah_settings);
+    let sah = stats(&compile(scene.clone(), sah_settings).into_tree(), n, &sah_settings);
+    let median = stats(&compile(scene, median_settings).into_tree(), n, &sah_settings);
     eprintln!("bunny: SAH cost {:.1} (SAH tree) vs {:.1} (median tree)", sah.sah_cost, median.sah_cost);
     assert!(sah.sah_cost < 0.75 * median.sah_cost);
 }
@@ -290,8 +290,8 @@ fn each_leaf_cost_model_builds_the_tree_cheapest_under_it() {
     let cpu = BuildSettings::default();
     let gpu = BuildSettings::for_gpu();
     assert_eq!((cpu.leaf_block, gpu.leaf_block), (BLOCK_WIDTH, 1));
-    let tree_cpu = compile(scene.clone(), cpu).tree;
-    let tree_gpu = compile(scene, gpu).tree;
+    let tree_cpu = compile(scene.clone(), cpu).into_tree();
+    let tree_gpu = compile(scene, gpu).into_tree();
     let cost = |t: &KdTree, s: &BuildSettings| stats(t, n, s).sah_cost;
     let (cc, cg, gc, gg) = (cost(&tree_cpu, &cpu), cost(&tree_gpu, &cpu), cost(&tree_cpu, &gpu), cost(&tree_gpu, &gpu));
     eprintln!(
@@ -309,7 +309,7 @@ fn each_leaf_cost_model_builds_the_tree_cheapest_under_it() {
 #[test]
 fn unaligned_leaves_are_laid_out_anew_and_stay_exact() {
     let scene = obj::load_obj(&mesh("bunny-stanford-bun_zipper/bun_zipper.obj")).unwrap();
-    let mut tree = compile(scene.clone(), BuildSettings::default()).tree;
+    let mut tree = compile(scene.clone(), BuildSettings::default()).into_tree();
     assert!(is_aligned(&tree));
     // Pack the runs back to back, as the list was before blocks.
     let mut packed = Vec::new();
@@ -323,17 +323,17 @@ fn unaligned_leaves_are_laid_out_anew_and_stay_exact() {
     tree.indices = packed;
     assert!(!is_aligned(&tree), "packing must break the layout, or this test checks nothing");
     let c = Compiled::new(scene, tree);
-    assert!(is_aligned(&c.tree));
+    assert!(is_aligned(c.tree()));
     let after: Vec<Vec<u32>> = c
-        .tree
+        .tree()
         .nodes
         .iter()
         .filter(|n| n.is_leaf())
-        .map(|n| c.tree.indices[n.first_index() as usize..(n.first_index() + n.count()) as usize].to_vec())
+        .map(|n| c.tree().indices[n.first_index() as usize..(n.first_index() + n.count()) as usize].to_vec())
         .collect();
     assert_eq!(after, runs, "laying out must keep every leaf's triangles in order");
     let mut rng = Pcg64::seed_from_u64(5);
-    let (lo, hi) = (c.tree.bounds_min, c.tree.bounds_max);
+    let (lo, hi) = (c.tree().bounds_min, c.tree().bounds_max);
     let rays: Vec<(Vec3, Vec3)> = (0..20_000)
         .map(|_| {
             let o = lo
@@ -356,12 +356,12 @@ fn block_leaf_test_equals_the_one_by_one_test_on_every_leaf() {
     let c = compile(scene, BuildSettings::default());
     let params = c.bounds_params();
     let view = c.view(&params);
-    let leaves: Vec<KdNode> = c.tree.nodes.iter().copied().filter(|n| n.is_leaf()).collect();
+    let leaves: Vec<KdNode> = c.tree().nodes.iter().copied().filter(|n| n.is_leaf()).collect();
     assert!(
         leaves.iter().any(|n| n.count() == 0 && n.first_index() % BLOCK_WIDTH != 0),
         "no unaligned empty leaf: the empty case goes untested"
     );
-    let (lo, hi) = (c.tree.bounds_min, c.tree.bounds_max);
+    let (lo, hi) = (c.tree().bounds_min, c.tree().bounds_max);
     let mut rng = Pcg64::seed_from_u64(17);
     let mut hits = 0;
     for _ in 0..300 {

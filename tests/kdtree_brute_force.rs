@@ -62,7 +62,7 @@ fn check_rays(c: &Compiled, rays: &[(Vec3, Vec3)]) -> (usize, usize) {
 /// outside at random points of random triangles, so most of them hit.
 fn random_rays(c: &Compiled, n: usize, seed: u64) -> Vec<(Vec3, Vec3)> {
     let mut rng = Pcg64::seed_from_u64(seed);
-    let (lo, hi) = (c.tree.bounds_min, c.tree.bounds_max);
+    let (lo, hi) = (c.tree().bounds_min, c.tree().bounds_max);
     let center = 0.5 * (lo + hi);
     let radius = 0.5 * (hi - lo).length();
     (0..n)
@@ -90,14 +90,14 @@ fn random_rays(c: &Compiled, n: usize, seed: u64) -> Vec<(Vec3, Vec3)> {
 fn mesh_case(rel: &str, seed: u64) {
     let scene = obj::load_obj(&mesh(rel)).unwrap();
     let c = compile(scene, BuildSettings::default());
-    validate(&c.tree, &c.scene.triangles).unwrap();
+    validate(c.tree(), &c.scene.triangles).unwrap();
     let (rays, hits) = check_rays(&c, &random_rays(&c, 100_000, seed));
     assert!(hits > rays / 3, "{rel}: only {hits} of {rays} rays hit: the test would prove little");
     eprintln!(
         "{rel}: {} triangles, {} nodes, depth {}, {rays} rays, {hits} hits, all equal to brute force",
         c.scene.triangles.len(),
-        c.tree.nodes.len(),
-        c.tree.depth
+        c.tree().nodes.len(),
+        c.tree().depth
     );
 }
 
@@ -123,7 +123,7 @@ fn cornell_box_original_matches_brute_force() {
 fn staircase_grid_line_rays_match_brute_force() {
     let (steps, width) = (16u32, 8u32);
     let c = compile(procedural::staircase(steps, width).unwrap(), BuildSettings::default());
-    validate(&c.tree, &c.scene.triangles).unwrap();
+    validate(c.tree(), &c.scene.triangles).unwrap();
     let rays = grid_line_rays(steps, width);
     let (count, hits) = check_rays(&c, &rays);
     assert!(hits > count / 4, "only {hits} of {count} grid rays hit");
@@ -155,12 +155,14 @@ fn garbage_rays_miss_without_hanging() {
 fn tree_is_valid_and_shallow_enough() {
     for scene in [procedural::staircase(32, 4).unwrap(), procedural::furnace(0.5, 1.0).unwrap()] {
         let c = compile(scene, BuildSettings::default());
-        validate(&c.tree, &c.scene.triangles).unwrap();
-        assert!(c.tree.depth <= shared::layout::KD_MAX_DEPTH);
+        validate(c.tree(), &c.scene.triangles).unwrap();
+        assert!(c.tree().depth <= shared::layout::KD_MAX_DEPTH);
     }
     // A corrupted tree is caught.
-    let mut c = compile(procedural::staircase(8, 2).unwrap(), BuildSettings::default());
-    let leaf = c.tree.nodes.iter().position(|n| n.is_leaf() && n.count() > 0).unwrap();
-    c.tree.nodes[leaf] = shared::layout::KdNode::leaf(0, 0);
-    assert!(validate(&c.tree, &c.scene.triangles).is_err());
+    let c = compile(procedural::staircase(8, 2).unwrap(), BuildSettings::default());
+    let triangles = c.scene.triangles.clone();
+    let mut tree = c.into_tree();
+    let leaf = tree.nodes.iter().position(|n| n.is_leaf() && n.count() > 0).unwrap();
+    tree.nodes[leaf] = shared::layout::KdNode::leaf(0, 0);
+    assert!(validate(&tree, &triangles).is_err());
 }

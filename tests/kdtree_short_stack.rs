@@ -21,7 +21,7 @@ use shared::{
 
 fn rays(c: &Compiled, n: usize, seed: u64) -> Vec<(Vec3, Vec3)> {
     let mut rng = Pcg64::seed_from_u64(seed);
-    let (lo, hi) = (c.tree.bounds_min, c.tree.bounds_max);
+    let (lo, hi) = (c.tree().bounds_min, c.tree().bounds_max);
     (0..n)
         .map(|_| {
             let o = lo

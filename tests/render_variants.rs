@@ -83,10 +83,10 @@ fn each_device_on_its_own_tree_renders_the_same_image() {
     let cpu_tree = load(&path, BuildSettings::default()).unwrap().compiled;
     let gpu_tree = load(&path, BuildSettings::for_gpu()).unwrap().compiled;
     assert!(
-        gpu_tree.tree.nodes.len() > 4 * cpu_tree.tree.nodes.len(),
+        gpu_tree.tree().nodes.len() > 4 * cpu_tree.tree().nodes.len(),
         "the trees should differ: {} and {} nodes",
-        gpu_tree.tree.nodes.len(),
-        cpu_tree.tree.nodes.len()
+        gpu_tree.tree().nodes.len(),
+        cpu_tree.tree().nodes.len()
     );
     let s = settings();
     let reference = cpu::render(&cpu_tree, &s, &no_progress).unwrap();

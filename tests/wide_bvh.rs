@@ -62,7 +62,7 @@ fn check_rays(c: &Compiled, rays: &[(Vec3, Vec3, f32)]) -> (usize, usize) {
 /// (as a bounce does) and run a random short length.
 fn random_rays(c: &Compiled, n: usize, seed: u64) -> Vec<(Vec3, Vec3, f32)> {
     let mut rng = Pcg64::seed_from_u64(seed);
-    let (lo, hi) = (c.tree.bounds_min, c.tree.bounds_max);
+    let (lo, hi) = (c.tree().bounds_min, c.tree().bounds_max);
     let center = 0.5 * (lo + hi);
     let radius = 0.5 * (hi - lo).length();
     (0..n)

@@ -59,7 +59,7 @@ pub fn run(a: CompileArgs) -> Result<ExitCode> {
             scene: &a.scene,
             out: &a.out,
             triangles: c.scene.triangles.len(),
-            nodes: c.tree.nodes.len(),
+            nodes: c.tree().nodes.len(),
             bytes,
             load_s: loaded.load_s,
             build_s: loaded.build_s,
@@ -71,7 +71,7 @@ pub fn run(a: CompileArgs) -> Result<ExitCode> {
             "{}: {} triangles, {} nodes, {bytes} bytes (load {:.3} s, build {:.3} s, write {write_s:.3} s)",
             a.out.display(),
             c.scene.triangles.len(),
-            c.tree.nodes.len(),
+            c.tree().nodes.len(),
             loaded.load_s,
             loaded.build_s
         );

@@ -147,7 +147,15 @@ fn settings(a: &ImageArgs, loaded: &mut Loaded, scene: &Path) -> Result<RenderSe
 /// Loads a scene, building its tree (unless stored) with `build`, and reports its warnings on
 /// stderr.
 pub(crate) fn load(path: &Path, build: kdbuild::BuildSettings, camera: Option<&str>) -> Result<Loaded> {
-    let loaded = crate::render::load::load_with_camera(path, build, camera)?;
+    warn(crate::render::load::load_with_camera(path, build, camera)?)
+}
+
+/// `load`, the k-d tree left to be built when first asked for (`render::load::load_deferred`).
+pub(crate) fn load_deferred(path: &Path, build: kdbuild::BuildSettings, camera: Option<&str>) -> Result<Loaded> {
+    warn(crate::render::load::load_deferred(path, build, camera)?)
+}
+
+fn warn(loaded: Loaded) -> Result<Loaded> {
     for w in &loaded.warnings {
         eprintln!("warning: {w}");
     }

@@ -1,7 +1,7 @@
 //! `kdtrace render`: one image, or a partial render for `merge` (`--samples A..B --partial`), on
 //! one device or several at once (`--device all`, `render::multi`).
 use super::args::{Device, ImageArgs};
-use super::{load, print_json, run_device, settings, DeviceRun};
+use super::{load_deferred, print_json, run_device, settings, DeviceRun};
 use crate::files;
 use crate::image::io;
 use crate::kdbuild::BuildSettings;
@@ -109,8 +109,12 @@ struct RenderReport<'a> {
     triangles: usize,
     lights: usize,
     dropped_degenerate: usize,
-    nodes: usize,
-    tree_depth: u32,
+    /// The k-d tree's nodes and depth, where it was built (a GPU or a `--traversal full` or
+    /// `short` render; a CPU render on the wide BVH builds none).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    nodes: Option<usize>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    tree_depth: Option<u32>,
     /// Samples per pixel rendered (with adaptive sampling, the most any pixel holds).
     spp: u32,
     /// The fewest and the mean samples per pixel (equal to `spp` without adaptive sampling).
@@ -184,7 +188,7 @@ pub fn run(r: RenderArgs) -> Result<ExitCode> {
         // Before the scene is read: a GPU has no wide BVH.
         r.image.traversal.check_for_adapter()?;
     }
-    let mut loaded = load(&r.scene, devices.build_settings(r.partial.is_some()), r.image.camera.as_deref())?;
+    let mut loaded = load_deferred(&r.scene, devices.build_settings(r.partial.is_some()), r.image.camera.as_deref())?;
     let mut s = settings(&r.image, &mut loaded, &r.scene)?;
     let several = matches!(devices, Devices::Many(_));
     if r.partial.is_some() || several {
@@ -204,13 +208,18 @@ pub fn run(r: RenderArgs) -> Result<ExitCode> {
         s.check()?;
     }
     crate::render::memory::check(s.width, s.height, devices.any_gpu())?;
-    // The CPU path's wide BVH is built here rather than by the first pass, so its time is
-    // reported as building.
-    if devices.any_cpu() && s.traversal.for_cpu_path() == crate::settings::Traversal::Wide {
-        let t = std::time::Instant::now();
-        loaded.compiled.wide_bvh();
-        loaded.build_s += t.elapsed().as_secs_f64();
+    // The trees are built here rather than by the first pass, so that their time is reported
+    // as building: the k-d tree for a GPU and for the CPU's k-d traversals, the wide BVH for
+    // the CPU path on it.
+    let cpu_wide = devices.any_cpu() && s.traversal.for_cpu_path() == crate::settings::Traversal::Wide;
+    let t = std::time::Instant::now();
+    if devices.any_gpu() || (devices.any_cpu() && !cpu_wide) || r.partial.is_some() {
+        loaded.compiled.tree();
     }
+    if cpu_wide {
+        loaded.compiled.wide_bvh();
+    }
+    loaded.build_s += t.elapsed().as_secs_f64();
     let c = &loaded.compiled;
     let range = r.samples.unwrap_or([0, s.spp]);
     let run = match (&devices, &r.partial) {
@@ -296,8 +305,8 @@ pub fn run(r: RenderArgs) -> Result<ExitCode> {
             triangles: c.scene.triangles.len(),
             lights: c.scene.lights.len(),
             dropped_degenerate: c.scene.dropped_degenerate,
-            nodes: c.tree.nodes.len(),
-            tree_depth: c.tree.depth,
+            nodes: c.has_tree().then(|| c.tree().nodes.len()),
+            tree_depth: c.has_tree().then(|| c.tree().depth),
             spp: spp_range.2,
             spp_min: spp_range.0,
             spp_mean: spp_range.1,

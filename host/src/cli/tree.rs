@@ -43,8 +43,8 @@ pub fn run(t: TreeArgs) -> Result<ExitCode> {
     let settings = t.build.settings()?;
     let loaded = crate::load(&t.scene, settings)?;
     let c = &loaded.compiled;
-    let st = stats(&c.tree, c.scene.triangles.len(), &settings);
-    let valid = t.validate.then(|| validate(&c.tree, &c.scene.triangles));
+    let st = stats(c.tree(), c.scene.triangles.len(), &settings);
+    let valid = t.validate.then(|| validate(c.tree(), &c.scene.triangles));
     let mtris_per_s = st.triangles as f64 / loaded.build_s / 1e6;
     if t.json {
         print_json(&TreeReport {

@@ -41,7 +41,7 @@ pub fn replay(c: &Compiled, s: &RenderSettings, x: u32, y: u32, sample: u32) -> 
     let scene = c.view(&params);
     let v = Variant::new(features::variant_bits(c, s), &params);
     let project = |p: DVec3| project(s, p);
-    let mut rec = Collector::new(&c.tree.nodes, &c.tree.indices, c.origin, &project);
+    let mut rec = Collector::new(&c.tree().nodes, &c.tree().indices, c.origin, &project);
     let r = trace_sample_recorded(&scene, &params, v, x, y, sample, &mut rec);
     // What `shared::integrator::render_samples` adds to the pixel's sum.
     let (l, zeroed) = sanitize(r.radiance, params.aov == AOV_NORMAL);

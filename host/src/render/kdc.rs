@@ -155,7 +155,7 @@ fn writer() -> String {
 
 /// The bytes of a `.kdc` file.
 pub fn encode(c: &Compiled, build_settings: &BuildSettings, settings: &SceneSettings) -> Result<Vec<u8>> {
-    let (s, t) = (&c.scene, &c.tree);
+    let (s, t) = (&c.scene, c.tree());
     let map = s.environment_map.as_ref();
     let header = Header {
         writer: writer(),

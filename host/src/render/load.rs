@@ -64,6 +64,17 @@ pub fn load(path: &Path, settings: BuildSettings) -> Result<Loaded> {
 /// `load`, with a glTF scene's camera chosen by its index or name (`--camera`; default: its first
 /// perspective camera). A camera choice for any other kind of scene is an error.
 pub fn load_with_camera(path: &Path, settings: BuildSettings, camera: Option<&str>) -> Result<Loaded> {
+    load_scene(path, settings, camera, false)
+}
+
+/// `load_with_camera`, leaving the k-d tree to be built when first asked for
+/// (`Compiled::deferred`; a `.kdc` brings its own): a CPU render on the wide BVH never needs it.
+/// `build_s` is then 0.
+pub fn load_deferred(path: &Path, settings: BuildSettings, camera: Option<&str>) -> Result<Loaded> {
+    load_scene(path, settings, camera, true)
+}
+
+fn load_scene(path: &Path, settings: BuildSettings, camera: Option<&str>, defer: bool) -> Result<Loaded> {
     let t0 = Instant::now();
     let kind = SceneKind::of(path)?;
     if camera.is_some() && kind != SceneKind::Gltf {
@@ -120,10 +131,13 @@ pub fn load_with_camera(path: &Path, settings: BuildSettings, camera: Option<&st
     }
     let load_s = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();
-    let tree = kdbuild::build(&scene.triangles, scene.bounds_min, scene.bounds_max, settings);
+    let tree = (!defer).then(|| kdbuild::build(&scene.triangles, scene.bounds_min, scene.bounds_max, settings));
     let build_s = t1.elapsed().as_secs_f64();
     let t2 = Instant::now();
-    let mut compiled = Compiled::new(scene, tree);
+    let mut compiled = match tree {
+        Some(tree) => Compiled::new(scene, tree),
+        None => Compiled::deferred(scene, settings),
+    };
     compiled.origin = origin;
     let prepare_s = t2.elapsed().as_secs_f64();
     Ok(Loaded { compiled, settings: scene_settings, warnings, aspect, kind, load_s, build_s, prepare_s })

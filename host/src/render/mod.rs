@@ -17,13 +17,13 @@ pub mod progressive;
 pub mod raybench;
 pub mod verify;
 
-use crate::kdbuild::KdTree;
+use crate::kdbuild::{BuildSettings, KdTree};
 use crate::scene::local_frame::{point_to_local, point_to_world};
 use crate::scene::Scene;
 use crate::settings::{Aov, RenderSettings, Traversal};
 use anyhow::{bail, Result};
 use rayon::prelude::*;
-use shared::glam::{DVec3, Vec4};
+use shared::glam::{DVec3, Vec3, Vec4};
 use shared::layout::{
     Light, RenderParams, TriBlock, Triangle, AOV_ALBEDO, AOV_COST, AOV_NORMAL, AOV_RADIANCE, BLOCK_WIDTH,
     LIGHT_ENVIRONMENT_BIT, LIGHT_NOT_TRIANGLE, NO_ENVIRONMENT_MAP, TRAVERSAL_FULL_STACK, TRAVERSAL_SHORT_STACK,
@@ -36,7 +36,14 @@ use shared::vecmath::{luminance, xyz};
 /// A scene ready to render: geometry, materials, lights and its k-d tree.
 pub struct Compiled {
     pub scene: Scene,
-    pub tree: KdTree,
+    /// The k-d tree and its leaf blocks: given (`new`), or built with `kd_settings` when first
+    /// asked for (`deferred`): a CPU render on the wide BVH never asks.
+    kd: std::sync::OnceLock<KdPart>,
+    kd_settings: BuildSettings,
+    /// The box the tree is built in (the scene's box; for a `.kdc`, the stored tree's): what
+    /// rays are clipped to and a default camera frames.
+    pub bounds_min: Vec3,
+    pub bounds_max: Vec3,
     /// The light table padded to at least one entry (GPU buffers cannot be empty): the
     /// scene's emitting triangles, then its environment map and punctual lights, one
     /// distribution by power over all of them (`prepare_emitters`).
@@ -47,9 +54,6 @@ pub struct Compiled {
     pub textures: Vec<u32>,
     /// `RenderParams::environment_map`: 1 + the map's first word in `textures`, or 0.
     pub environment_map: u32,
-    /// The triangles of `tree.indices` in blocks of `BLOCK_WIDTH`, for the SIMD leaf test
-    /// (`shared::layout::TriBlock`); derived from the tree, never stored.
-    pub blocks: Vec<TriBlock>,
     /// World position of the scene's coordinate origin (`local_frame`): the scene and its tree
     /// are stored relative to it, cameras are given in world space (f64 both).
     pub origin: DVec3,
@@ -61,31 +65,86 @@ pub struct Compiled {
     pub wide: std::sync::OnceLock<crate::bvh::WideBvh>,
 }
 
+/// The k-d tree with the triangles of its leaves in blocks of `BLOCK_WIDTH`, for the CPU's SIMD
+/// leaf test (`shared::layout::TriBlock`; derived from the tree, never stored).
+struct KdPart {
+    tree: KdTree,
+    blocks: Vec<TriBlock>,
+}
+
+impl KdPart {
+    fn new(mut tree: KdTree, triangles: &[Triangle]) -> Self {
+        // A tree from a .kdc file of an older layout, or built elsewhere, gets the block layout
+        // the CPU's leaf test relies on; a fresh build already has it.
+        crate::kdbuild::align_leaves(&mut tree);
+        let blocks = leaf_blocks(&tree.indices, triangles);
+        KdPart { tree, blocks }
+    }
+}
+
 impl Compiled {
-    pub fn new(mut scene: Scene, mut tree: KdTree) -> Self {
+    /// The scene with the k-d tree `tree`, built in its box.
+    pub fn new(scene: Scene, tree: KdTree) -> Self {
+        let (lo, hi) = (tree.bounds_min, tree.bounds_max);
+        let c = Self::deferred(scene, BuildSettings::default());
+        let part = KdPart::new(tree, &c.scene.triangles);
+        let _ = c.kd.set(part);
+        Compiled { bounds_min: lo, bounds_max: hi, ..c }
+    }
+
+    /// The scene, its k-d tree to be built with `settings` in the scene's box when first asked
+    /// for (`tree`).
+    pub fn deferred(mut scene: Scene, settings: BuildSettings) -> Self {
         // A rough plastic's coating table, also for a material changed after loading.
         scene.refresh_coating_tables();
         // Shading reads each triangle's unit normal from its `w` components.
         scene.triangles.par_iter_mut().for_each(|t| *t = t.with_unit_normal());
-        // A tree from a .kdc file of an older layout, or built elsewhere, gets the block layout
-        // the CPU's leaf test relies on; a fresh build already has it.
-        crate::kdbuild::align_leaves(&mut tree);
-        let blocks = leaf_blocks(&tree.indices, &scene.triangles);
         let alpha_masks = features::uses_alpha_masks(&scene);
+        let (bounds_min, bounds_max) = (scene.bounds_min, scene.bounds_max);
         let mut c = Self {
             scene,
-            tree,
+            kd: std::sync::OnceLock::new(),
+            kd_settings: settings,
+            bounds_min,
+            bounds_max,
             lights: Vec::new(),
             light_count: 0,
             textures: Vec::new(),
             environment_map: NO_ENVIRONMENT_MAP,
-            blocks,
             origin: DVec3::ZERO,
             alpha_masks,
             wide: std::sync::OnceLock::new(),
         };
         c.prepare_emitters();
         c
+    }
+
+    fn kd(&self) -> &KdPart {
+        self.kd.get_or_init(|| {
+            let tree = crate::kdbuild::build(&self.scene.triangles, self.bounds_min, self.bounds_max, self.kd_settings);
+            KdPart::new(tree, &self.scene.triangles)
+        })
+    }
+
+    /// The k-d tree, built on the first call of a `deferred` scene.
+    pub fn tree(&self) -> &KdTree {
+        &self.kd().tree
+    }
+
+    /// The triangles of the tree's leaves in blocks of `BLOCK_WIDTH` (`leaf_blocks`).
+    pub fn blocks(&self) -> &[TriBlock] {
+        &self.kd().blocks
+    }
+
+    /// Whether the k-d tree is built (or was given).
+    pub fn has_tree(&self) -> bool {
+        self.kd.get().is_some()
+    }
+
+    /// The k-d tree, built if it was not.
+    pub fn into_tree(self) -> KdTree {
+        self.kd();
+        self.kd.into_inner().map(|k| k.tree).unwrap_or_default()
     }
 
     /// Builds the light table and the words after the textures from the scene's emitters: each
@@ -100,7 +159,7 @@ impl Compiled {
         let mut lights = scene.lights.clone();
         self.environment_map = NO_ENVIRONMENT_MAP;
         if scene.environment_map.is_some() || !scene.punctual_lights.is_empty() {
-            let radius = 0.5 * (self.tree.bounds_max - self.tree.bounds_min).as_dvec3().length();
+            let radius = 0.5 * (self.bounds_max - self.bounds_min).as_dvec3().length();
             let triangle_power: Vec<f64> = scene
                 .lights
                 .iter()
@@ -156,7 +215,7 @@ impl Compiled {
 
     /// The scene's bounds in world space (what a default camera frames).
     pub fn world_bounds(&self) -> (DVec3, DVec3) {
-        (point_to_world(self.tree.bounds_min, self.origin), point_to_world(self.tree.bounds_max, self.origin))
+        (point_to_world(self.bounds_min, self.origin), point_to_world(self.bounds_max, self.origin))
     }
 
     pub fn params(&self, s: &RenderSettings, sample_start: u32, sample_count: u32) -> Result<RenderParams> {
@@ -173,8 +232,8 @@ impl Compiled {
             right: right.extend(0.0),
             up: up.extend(0.0),
             forward: forward.extend(0.0),
-            bounds_min: self.tree.bounds_min.extend(0.0),
-            bounds_max: self.tree.bounds_max.extend(0.0),
+            bounds_min: self.bounds_min.extend(0.0),
+            bounds_max: self.bounds_max.extend(0.0),
             environment: s.environment.extend(0.0),
             width: s.width,
             height: s.height,
@@ -208,8 +267,8 @@ impl Compiled {
     /// Parameters that carry only what ray casting needs (scene bounds, light count).
     pub fn bounds_params(&self) -> RenderParams {
         RenderParams {
-            bounds_min: self.tree.bounds_min.extend(0.0),
-            bounds_max: self.tree.bounds_max.extend(0.0),
+            bounds_min: self.bounds_min.extend(0.0),
+            bounds_max: self.bounds_max.extend(0.0),
             light_count: self.light_count,
             ..Default::default()
         }
@@ -221,11 +280,17 @@ impl Compiled {
     }
 
     pub fn view<'a>(&'a self, params: &RenderParams) -> SceneView<'a> {
+        // A view for the wide BVH carries the k-d tree only where it was built already.
+        let kd = if params.traversal == TRAVERSAL_WIDE_BVH { self.kd.get() } else { Some(self.kd()) };
+        let (nodes, indices, blocks) = match kd {
+            Some(k) => (&k.tree.nodes[..], &k.tree.indices[..], &k.blocks[..]),
+            None => (&[][..], &[][..], &[][..]),
+        };
         let mut view = SceneView::new(
             params,
-            &self.tree.nodes,
-            &self.tree.indices,
-            &self.blocks,
+            nodes,
+            indices,
+            blocks,
             &self.scene.triangles,
             &self.scene.info,
             &self.scene.materials,

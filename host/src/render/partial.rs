@@ -115,9 +115,9 @@ pub fn scene_hash(c: &Compiled) -> String {
     section("light_count", &c.light_count.to_le_bytes());
     section("textures", bytemuck::cast_slice(&c.textures));
     section("environment_map", &c.environment_map.to_le_bytes());
-    section("nodes", bytemuck::cast_slice(&c.tree.nodes));
-    section("indices", bytemuck::cast_slice(&c.tree.indices));
-    section("bounds", bytemuck::cast_slice(&[c.tree.bounds_min, c.tree.bounds_max]));
+    section("nodes", bytemuck::cast_slice(&c.tree().nodes));
+    section("indices", bytemuck::cast_slice(&c.tree().indices));
+    section("bounds", bytemuck::cast_slice(&[c.tree().bounds_min, c.tree().bounds_max]));
     section("origin", bytemuck::cast_slice(&c.origin.to_array()));
     section("alpha_masks", &[c.alpha_masks as u8]);
     format!("{:032x}", h.digest128())

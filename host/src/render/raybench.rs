@@ -59,7 +59,7 @@ pub fn make_rays(c: &Compiled, s: &RenderSettings, kind: RayKind, traversal: Tra
     }
     let params = c.bounds_params();
     let scene = c.view(&params);
-    let diagonal = (c.tree.bounds_max - c.tree.bounds_min).length();
+    let diagonal = (c.bounds_max - c.bounds_min).length();
     let out = camera
         .par_iter()
         .enumerate()

@@ -277,8 +277,8 @@ impl Gpu {
 
     fn upload_scene(&self, c: &Compiled) -> Result<SceneBuffers> {
         self.check_size("triangles", std::mem::size_of_val(&c.scene.triangles[..]))?;
-        self.check_size("k-d nodes", std::mem::size_of_val(&c.tree.nodes[..]))?;
-        self.check_size("leaf indices", std::mem::size_of_val(&c.tree.indices[..]))?;
+        self.check_size("k-d nodes", std::mem::size_of_val(&c.tree().nodes[..]))?;
+        self.check_size("leaf indices", std::mem::size_of_val(&c.tree().indices[..]))?;
         self.check_size("vertex attributes", std::mem::size_of_val(&c.scene.attributes[..]))?;
         self.check_size("textures", std::mem::size_of_val(&c.textures[..]))?;
         let params = self.device.create_buffer(&wgpu::BufferDescriptor {
@@ -289,11 +289,11 @@ impl Gpu {
         });
         Ok(SceneBuffers {
             params,
-            nodes: self.storage("nodes", bytemuck::cast_slice(&c.tree.nodes)),
+            nodes: self.storage("nodes", bytemuck::cast_slice(&c.tree().nodes)),
             // Storage buffers may not be empty: a tree always has a node, the rest get a zero word.
             indices: self.storage(
                 "indices",
-                bytemuck::cast_slice(if c.tree.indices.is_empty() { &[0u32][..] } else { &c.tree.indices }),
+                bytemuck::cast_slice(if c.tree().indices.is_empty() { &[0u32][..] } else { &c.tree().indices }),
             ),
             triangles: self.storage("triangles", bytemuck::cast_slice(&c.scene.triangles)),
             info: self.storage("info", bytemuck::cast_slice(&c.scene.info)),

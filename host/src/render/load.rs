@@ -25,10 +25,12 @@ pub struct Loaded {
     pub kind: SceneKind,
     /// Reading and parsing (for a `.kdc`: reading, checking and validating everything).
     pub load_s: f64,
-    /// Building the k-d tree (0 for a `.kdc`).
+    /// Building the k-d tree (0 for a `.kdc`, and for `load_deferred`, which leaves it to be
+    /// built when first asked for).
     pub build_s: f64,
-    /// Laying the scene out for rendering once its tree is built: unit normals and the CPU's
-    /// eight-triangle leaf blocks (`Compiled::new`; for a `.kdc`, part of `load_s`).
+    /// Laying the scene out for rendering: unit normals, the light table and, once the tree is
+    /// built, the CPU's eight-triangle leaf blocks (`Compiled::new`, `Compiled::deferred`; for a
+    /// `.kdc`, part of `load_s`).
     pub prepare_s: f64,
 }
 

@@ -89,7 +89,13 @@ impl Compiled {
         let c = Self::deferred(scene, BuildSettings::default());
         let part = KdPart::new(tree, &c.scene.triangles);
         let _ = c.kd.set(part);
-        Compiled { bounds_min: lo, bounds_max: hi, ..c }
+        let mut c = Compiled { bounds_min: lo, bounds_max: hi, ..c };
+        // The light table weighs an environment map by the radius of the tree's box: a tree
+        // built in another box than the scene's (a `.kdc` may store one) gets it again.
+        if (lo, hi) != (c.scene.bounds_min, c.scene.bounds_max) {
+            c.prepare_emitters();
+        }
+        c
     }
 
     /// The scene, its k-d tree to be built with `settings` in the scene's box when first asked

@@ -86,27 +86,27 @@ impl Compiled {
     /// The scene with the k-d tree `tree`, built in its box.
     pub fn new(scene: Scene, tree: KdTree) -> Self {
         let (lo, hi) = (tree.bounds_min, tree.bounds_max);
-        let c = Self::deferred(scene, BuildSettings::default());
+        let c = Self::with_box(scene, BuildSettings::default(), lo, hi);
         let part = KdPart::new(tree, &c.scene.triangles);
         let _ = c.kd.set(part);
-        let mut c = Compiled { bounds_min: lo, bounds_max: hi, ..c };
-        // The light table weighs an environment map by the radius of the tree's box: a tree
-        // built in another box than the scene's (a `.kdc` may store one) gets it again.
-        if (lo, hi) != (c.scene.bounds_min, c.scene.bounds_max) {
-            c.prepare_emitters();
-        }
         c
     }
 
     /// The scene, its k-d tree to be built with `settings` in the scene's box when first asked
     /// for (`tree`).
-    pub fn deferred(mut scene: Scene, settings: BuildSettings) -> Self {
+    pub fn deferred(scene: Scene, settings: BuildSettings) -> Self {
+        let (lo, hi) = (scene.bounds_min, scene.bounds_max);
+        Self::with_box(scene, settings, lo, hi)
+    }
+
+    /// The scene laid out for rendering, no tree yet, in the tree's box [bounds_min, bounds_max]
+    /// (which also weighs an environment map in the light table).
+    fn with_box(mut scene: Scene, settings: BuildSettings, bounds_min: Vec3, bounds_max: Vec3) -> Self {
         // A rough plastic's coating table, also for a material changed after loading.
         scene.refresh_coating_tables();
         // Shading reads each triangle's unit normal from its `w` components.
         scene.triangles.par_iter_mut().for_each(|t| *t = t.with_unit_normal());
         let alpha_masks = features::uses_alpha_masks(&scene);
-        let (bounds_min, bounds_max) = (scene.bounds_min, scene.bounds_max);
         let mut c = Self {
             scene,
             kd: std::sync::OnceLock::new(),
@@ -150,7 +150,7 @@ impl Compiled {
     /// The k-d tree, built if it was not.
     pub fn into_tree(self) -> KdTree {
         self.kd();
-        self.kd.into_inner().map(|k| k.tree).unwrap_or_default()
+        self.kd.into_inner().expect("built by kd()").tree
     }
 
     /// Builds the light table and the words after the textures from the scene's emitters: each

@@ -265,3 +265,55 @@ fn compile_takes_build_settings() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
 }
+
+/// The CPU integrator compiled for AVX-512 (where this CPU has it, the default) and for the
+/// build's own target (`KDTRACE_CPU_ISA=baseline`) renders the same image bit for bit, through
+/// the diffuse variant, textures, the other materials and an environment map; `--json` names
+/// the instruction set that ran. Where the CPU lacks AVX-512 both runs take the build's target
+/// and only the names are checked.
+#[test]
+fn cpu_instruction_sets_render_the_same_image() {
+    #[cfg(target_arch = "x86_64")]
+    let avx512 = std::arch::is_x86_feature_detected!("avx512f")
+        && std::arch::is_x86_feature_detected!("avx512vl")
+        && std::arch::is_x86_feature_detected!("avx512bw")
+        && std::arch::is_x86_feature_detected!("avx512dq")
+        && std::arch::is_x86_feature_detected!("avx512cd");
+    #[cfg(not(target_arch = "x86_64"))]
+    let avx512 = false;
+    let scenes = [
+        "scenes/cornell-box.obj",
+        "tests/data/cornell-textured/cornell-textured.toml",
+        "tests/data/cornell-materials/cornell-roughplastic.toml",
+        "tests/data/cornell-materials/cornell-glass.toml",
+        "tests/data/environment/sky-scene.toml",
+    ];
+    for (i, scene) in scenes.iter().enumerate() {
+        let mut images = Vec::new();
+        for isa in ["default", "baseline"] {
+            let out = tmp(&format!("isa-{i}-{isa}.exr"));
+            let args = ["render", &repo(scene), "--out", out.to_str().unwrap(), "--device", "cpu", "--json"];
+            let size = ["--spp", "4", "--width", "24", "--height", "20", "--bounces", "4"];
+            let mut cmd = Command::new(env!("CARGO_BIN_EXE_kdtrace"));
+            cmd.args(args).args(size);
+            if isa == "baseline" {
+                cmd.env("KDTRACE_CPU_ISA", "baseline");
+            }
+            let o = cmd.output().unwrap();
+            assert!(o.status.success(), "{scene}: {}", stderr(&o));
+            let line: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+            let adapter = line["adapter"].as_str().unwrap().to_owned();
+            let expected = if avx512 && isa == "default" { "x86-64-v4" } else { "threads, " };
+            assert!(adapter.contains(expected), "{scene}, {isa}: {adapter}");
+            if isa == "baseline" {
+                assert!(!adapter.contains("x86-64-v4"), "{scene}: {adapter}");
+            }
+            let (_, _, px) = kdtrace::image::io::read_exr(&out).unwrap();
+            images.push(px);
+        }
+        assert!(images[0].iter().any(|p| p.iter().any(|&c| c > 0.0)), "{scene}: a black image");
+        let differ =
+            images[0].iter().zip(&images[1]).filter(|(a, b)| a.map(f32::to_bits) != b.map(f32::to_bits)).count();
+        assert_eq!(differ, 0, "{scene}: {differ} pixels differ between the instruction sets");
+    }
+}

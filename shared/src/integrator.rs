@@ -554,6 +554,9 @@ pub fn render_samples(
 
 /// `render_samples` compiled for the feature set `F`: a CPU variant, monomorphised, so what `F`
 /// leaves out is not in its code. `F = FEATURES_ALL` is the generic code.
+/// Inlined whole into its callers, so that a caller compiled for more instructions (the CPU's
+/// AVX-512 copies) compiles all of it, traversal included, for them.
+#[inline(always)]
 #[allow(clippy::too_many_arguments)]
 pub fn render_samples_for<const F: u32>(
     scene: &SceneView,

@@ -149,7 +149,7 @@ impl Sampler {
         pcg4d(self.pixel, self.sample, self.set, self.seed)
     }
 
-    #[inline]
+    #[inline(always)]
     pub fn next_3d(&mut self) -> [f32; 3] {
         let bits = if (self.kind == SAMPLER_SOBOL) & (self.set < SOBOL_SETS) {
             let (seeds, zero) = self.sobol_seeds();
@@ -164,7 +164,7 @@ impl Sampler {
 
     /// The first two dimensions of the next set (the most evenly spread pair under Sobol):
     /// exactly `next_3d`'s first two, without computing the third.
-    #[inline]
+    #[inline(always)]
     pub fn next_2d(&mut self) -> (f32, f32) {
         let bits = if (self.kind == SAMPLER_SOBOL) & (self.set < SOBOL_SETS) {
             let (seeds, zero) = self.sobol_seeds();

@@ -54,7 +54,7 @@ struct Entry {
 
 /// The closest (or, with `any_hit`, any) hit in (0, t_max) that counts. The hit's `nodes` counts
 /// wide nodes visited, `tests` the triangles of the leaves tested.
-#[inline]
+#[inline(always)]
 pub fn traverse(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32, any_hit: bool) -> Hit {
     if scene.alpha_masks {
         traverse_with::<true>(scene, origin, dir, t_max, any_hit)
@@ -63,6 +63,7 @@ pub fn traverse(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32, any_hit:
     }
 }
 
+#[inline(always)]
 fn traverse_with<const MASKS: bool>(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32, any_hit: bool) -> Hit {
     let mut best = Hit::miss(t_max);
     let tree = scene.wide;

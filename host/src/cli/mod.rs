@@ -197,7 +197,7 @@ fn run_device(device: Device, c: &Compiled, s: &RenderSettings, a: &ImageArgs) -
         Device::Cpu => {
             let t = Instant::now();
             let image = crate::render::cpu::render(c, s, &report)?;
-            let adapter = format!("cpu ({} threads)", rayon::current_num_threads());
+            let adapter = crate::render::cpu::adapter_name(rayon::current_num_threads());
             DeviceRun { image, adapter, render_s: t.elapsed().as_secs_f64(), shares: None }
         }
         Device::Gpu => {

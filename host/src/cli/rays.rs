@@ -53,7 +53,7 @@ pub fn run(r: RaysArgs) -> Result<ExitCode> {
     };
     let adapter = g
         .as_ref()
-        .map_or_else(|| format!("cpu ({} threads)", rayon::current_num_threads()), |g| g.adapter.name.clone());
+        .map_or_else(|| crate::render::cpu::adapter_name(rayon::current_num_threads()), |g| g.adapter.name.clone());
     let traversal = match &g {
         Some(g) => s.traversal.for_adapter(g.is_cpu())?,
         None => s.traversal.for_cpu_path(),

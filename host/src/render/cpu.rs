@@ -14,7 +14,8 @@ use shared::features::{
 };
 use shared::glam::Vec4;
 use shared::integrator::render_samples_for;
-use shared::layout::{RenderParams, NO_HIT};
+use shared::layout::{RayQuery, RayResult, RenderParams, NO_HIT};
+use shared::raycast::cast_ray;
 use shared::scene::SceneView;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
@@ -38,6 +39,9 @@ macro_rules! variants {
         #[cfg_attr(not(test), allow(dead_code))]
         const CANONICAL: [u32; 64] = [$($bits),*];
         static VARIANTS: [VariantFn; 64] = [$(render_samples_for::<$bits> as VariantFn),*];
+        /// The same variants compiled for AVX-512 (`avx512::render_samples`).
+        #[cfg(target_arch = "x86_64")]
+        static VARIANTS_AVX512: [VariantFn; 64] = [$(avx512::render_samples::<$bits> as VariantFn),*];
     };
 }
 variants!(
@@ -88,9 +92,138 @@ fn variant_index(bits: u32) -> usize {
     (low + kinds + surface) as usize
 }
 
-/// The CPU's variant of the integrator for feature bits `bits` (`cpu_variant_bits`).
+/// The CPU's variant of the integrator for feature bits `bits` (`cpu_variant_bits`), compiled
+/// for AVX-512 where this CPU has it (`Isa::detect`).
 pub fn variant(bits: u32) -> VariantFn {
-    VARIANTS[variant_index(bits)]
+    variant_for(bits, Isa::detect())
+}
+
+/// `variant` compiled for `isa`; `Isa::Avx512` only where the CPU has it (`Isa::detect`).
+pub fn variant_for(bits: u32, isa: Isa) -> VariantFn {
+    match isa {
+        Isa::Baseline => VARIANTS[variant_index(bits)],
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx512 => VARIANTS_AVX512[variant_index(bits)],
+    }
+}
+
+/// The instruction sets the CPU integrator is compiled for. The build's own target (x86-64-v3 on
+/// x86-64, `.cargo/config.toml`) runs everywhere; the AVX-512 copy runs where the CPU has
+/// AVX-512 F, VL, BW, DQ and CD (x86-64-v4). Its 32 vector registers hold the traversal's ray
+/// constants without spilling them, and its compares write mask registers that become a bitmask
+/// in one move. Every operation is the same IEEE single-precision one (Rust fuses nothing), so
+/// the images are bit-identical (`tests/render_variants.rs`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Isa {
+    Baseline,
+    #[cfg(target_arch = "x86_64")]
+    Avx512,
+}
+
+impl Isa {
+    /// AVX-512 where the CPU has it, unless `KDTRACE_CPU_ISA=baseline` asks for the build's
+    /// own target (to compare the two).
+    pub fn detect() -> Isa {
+        #[cfg(target_arch = "x86_64")]
+        if avx512::available() && std::env::var("KDTRACE_CPU_ISA").as_deref() != Ok("baseline") {
+            return Isa::Avx512;
+        }
+        Isa::Baseline
+    }
+
+    /// The name `render --json` reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Isa::Baseline => BASELINE_NAME,
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx512 => "x86-64-v4",
+        }
+    }
+}
+
+/// The CPU device's name in reports: its threads and the instruction set the integrator runs.
+pub fn adapter_name(threads: usize) -> String {
+    format!("cpu ({threads} threads, {})", Isa::detect().name())
+}
+
+/// Casts one ray of a batch (`shared::raycast::cast_ray`) compiled for `isa`.
+pub fn cast_fn(isa: Isa) -> fn(&SceneView, &RayQuery) -> RayResult {
+    match isa {
+        Isa::Baseline => cast_ray,
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx512 => avx512::cast_ray,
+    }
+}
+
+/// The build's own target, as `render --json` names it.
+#[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+const BASELINE_NAME: &str = "x86-64-v3";
+#[cfg(not(all(target_arch = "x86_64", target_feature = "avx2")))]
+const BASELINE_NAME: &str = "baseline";
+
+/// The integrator's variants compiled for AVX-512.
+#[cfg(target_arch = "x86_64")]
+mod avx512 {
+    use super::*;
+
+    /// Whether this CPU runs `render_samples`.
+    pub fn available() -> bool {
+        std::arch::is_x86_feature_detected!("avx512f")
+            && std::arch::is_x86_feature_detected!("avx512vl")
+            && std::arch::is_x86_feature_detected!("avx512bw")
+            && std::arch::is_x86_feature_detected!("avx512dq")
+            && std::arch::is_x86_feature_detected!("avx512cd")
+    }
+
+    /// `render_samples_for::<F>` in a function compiled for AVX-512: the integrator, the
+    /// traversal and the sampler are inlined into it (`#[inline(always)]` down the hot path),
+    /// so they are compiled for AVX-512 too.
+    #[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq,avx512cd")]
+    #[allow(clippy::too_many_arguments)]
+    fn render_samples_avx512<const F: u32>(
+        scene: &SceneView,
+        p: &RenderParams,
+        x: u32,
+        y: u32,
+        start: u32,
+        count: u32,
+        sum: &mut Vec4,
+        sum_sq: &mut Vec4,
+        primary: &mut u32,
+    ) {
+        render_samples_for::<F>(scene, p, x, y, start, count, sum, sum_sq, primary)
+    }
+
+    /// A `VariantFn` for `render_samples_avx512::<F>`; only in `VARIANTS_AVX512`, which
+    /// `variant_for` hands out only for `Isa::Avx512`, which `Isa::detect` returns only where
+    /// `available()`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn render_samples<const F: u32>(
+        scene: &SceneView,
+        p: &RenderParams,
+        x: u32,
+        y: u32,
+        start: u32,
+        count: u32,
+        sum: &mut Vec4,
+        sum_sq: &mut Vec4,
+        primary: &mut u32,
+    ) {
+        // SAFETY: see above: the CPU has every feature the function is compiled for.
+        unsafe { render_samples_avx512::<F>(scene, p, x, y, start, count, sum, sum_sq, primary) }
+    }
+
+    /// `shared::raycast::cast_ray` compiled for AVX-512 (the wide BVH's traversal is inlined).
+    #[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq,avx512cd")]
+    fn cast_ray_avx512(scene: &SceneView, q: &RayQuery) -> RayResult {
+        shared::raycast::cast_ray(scene, q)
+    }
+
+    /// A plain function for `cast_ray_avx512`; `cast_fn` hands it out only for `Isa::Avx512`.
+    pub fn cast_ray(scene: &SceneView, q: &RayQuery) -> RayResult {
+        // SAFETY: as for `render_samples`.
+        unsafe { cast_ray_avx512(scene, q) }
+    }
 }
 
 /// Renders on the CPU: rayon over image rows, every pixel through `shared::integrator`. Without a
@@ -280,7 +413,7 @@ impl RunningSums for CpuSums<'_> {
     }
 
     fn name(&self) -> String {
-        format!("cpu ({} threads)", rayon::current_num_threads())
+        adapter_name(rayon::current_num_threads())
     }
 }
 

@@ -125,7 +125,9 @@ pub fn render(
     let mut shares: Vec<Share> = gpus
         .iter()
         .map(|g| Share {
-            device: g.as_ref().map_or_else(|| format!("cpu ({cpu_threads} threads)"), |g| g.adapter.name.clone()),
+            device: g
+                .as_ref()
+                .map_or_else(|| crate::render::cpu::adapter_name(cpu_threads), |g| g.adapter.name.clone()),
             blocks: 0,
             samples: 0,
             share: 0.0,

@@ -127,6 +127,7 @@ pub fn measure(
     }
     let params = c.bounds_params();
     let scene = c.view(&params);
+    let cast = crate::render::cpu::cast_fn(crate::render::cpu::Isa::detect());
     let mut best = f64::INFINITY;
     let mut results = Vec::new();
     for run in 0..=repeats {
@@ -134,7 +135,7 @@ pub fn measure(
             Some(g) => g.cast_timed(c, rays)?,
             None => {
                 let t = Instant::now();
-                let r: Vec<RayResult> = rays.par_iter().map(|q| cast_ray(&scene, q)).collect();
+                let r: Vec<RayResult> = rays.par_iter().map(|q| cast(&scene, q)).collect();
                 (r, t.elapsed().as_secs_f64())
             }
         };

@@ -317,3 +317,23 @@ fn cpu_instruction_sets_render_the_same_image() {
         assert_eq!(differ, 0, "{scene}: {differ} pixels differ between the instruction sets");
     }
 }
+
+/// A reader that leaves early (`| head -1`) ends the command quietly: no panic, exit code 0.
+#[test]
+fn closed_standard_output_ends_quietly() {
+    for args in [&["rays", "--width", "16", "--height", "16", "--json"][..], &["tree", "--json"][..], &["tree"][..]] {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_kdtrace"))
+            .arg(args[0])
+            .arg(repo("scenes/cornell-box.obj"))
+            .args(&args[1..])
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        // Close the read end before the command writes anything.
+        drop(child.stdout.take());
+        let o = child.wait_with_output().unwrap();
+        assert!(o.status.success(), "{args:?}: {:?}, {}", o.status, stderr(&o));
+        assert!(!stderr(&o).contains("panicked"), "{args:?}: {}", stderr(&o));
+    }
+}

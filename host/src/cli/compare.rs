@@ -77,7 +77,7 @@ pub fn run(a: CompareArgs) -> Result<ExitCode> {
         print_json(&CompareReport { errors: &e, reference: &a.reference, test: &a.test, pixel_test: test.as_ref() })?;
     } else {
         if let Some(p) = &test {
-            println!(
+            outln!(
                 "per-pixel test (Šidák, α = 0.01): {} of {} channel values rejected at {:.3e}, smallest p {:.3e}{}: {}",
                 p.rejected,
                 p.tests,
@@ -85,9 +85,9 @@ pub fn run(a: CompareArgs) -> Result<ExitCode> {
                 p.min_p,
                 p.worst.map_or(String::new(), |(x, y, k)| format!(" at ({x}, {y}) channel {k}")),
                 if p.pass { "consistent" } else { "INCONSISTENT" }
-            );
+            )?;
         }
-        println!(
+        outln!(
             "{} vs reference {} ({}x{}): RMSE {:.6e}, relMSE {:.6e}, MAE {:.6e}, FLIP {:.6} ({} ppd), mean ratio \
              {:.6}; NaN/Inf: reference {}/{}, test {}/{}",
             a.test.display(),
@@ -104,7 +104,7 @@ pub fn run(a: CompareArgs) -> Result<ExitCode> {
             e.reference_nonfinite.inf,
             e.test_nonfinite.nan,
             e.test_nonfinite.inf
-        );
+        )?;
     }
     Ok(if test.is_some_and(|p| !p.pass) { ExitCode::from(1) } else { ExitCode::SUCCESS })
 }

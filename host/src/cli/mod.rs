@@ -1,6 +1,15 @@
 //! The `kdtrace` command line: `render`, `merge`, `verify`, `tree`, `rays`, `export`, `compile`, `compare`,
 //! `pixel`, `serve`, `adapters`. One file per command; each prints text or, with `--json`, one
 //! line serialised from its report struct. Input errors exit with code 2, a failed check with 1.
+/// `println!` that returns the error instead of panicking when standard output is gone (a closed
+/// pipe: `kdtrace rays … --json | head -1`); `run` ends quietly on a closed pipe.
+macro_rules! outln {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        writeln!(std::io::stdout().lock(), $($arg)*)
+    }};
+}
+
 mod args;
 mod compare;
 mod compile;
@@ -78,6 +87,8 @@ pub fn run() -> ExitCode {
     };
     match result {
         Ok(code) => code,
+        // The reader of standard output left (`| head`): nothing is lost that it wanted.
+        Err(e) if closed_pipe(&e) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e:#}");
             ExitCode::from(2)
@@ -85,16 +96,21 @@ pub fn run() -> ExitCode {
     }
 }
 
+/// Whether `e` comes from writing to a pipe whose reader has gone.
+fn closed_pipe(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| c.downcast_ref::<std::io::Error>().is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe))
+}
+
 fn adapters() -> Result<ExitCode> {
     for a in crate::render::gpu::adapters() {
-        println!("{} ({:?}, {:?}, driver {} {})", a.name, a.device_type, a.backend, a.driver, a.driver_info);
+        outln!("{} ({:?}, {:?}, driver {} {})", a.name, a.device_type, a.backend, a.driver, a.driver_info)?;
     }
     Ok(ExitCode::SUCCESS)
 }
 
 /// Prints one report as a JSON line.
 fn print_json(report: &impl serde::Serialize) -> Result<()> {
-    println!("{}", serde_json::to_string(report)?);
+    outln!("{}", serde_json::to_string(report)?)?;
     Ok(())
 }
 

@@ -81,7 +81,7 @@ pub fn run(r: RaysArgs) -> Result<ExitCode> {
                 measured_over_ideal: t.mrays_per_s / ideal,
             })?;
         } else {
-            println!(
+            outln!(
                 "{:?}: {} rays ({} hits) in {:.4} s: {:.2} Mrays/s; per ray {:.1} nodes, {:.1} tests, {:.3} \
                  restarts; ideal {ideal:.2} Mrays/s, measured/ideal {:.2} ({adapter}, {traversal:?})",
                 kind,
@@ -93,7 +93,7 @@ pub fn run(r: RaysArgs) -> Result<ExitCode> {
                 t.tests_per_ray,
                 t.restarts_per_ray,
                 t.mrays_per_s / ideal,
-            );
+            )?;
         }
     }
     Ok(ExitCode::SUCCESS)

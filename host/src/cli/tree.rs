@@ -61,7 +61,7 @@ pub fn run(t: TreeArgs) -> Result<ExitCode> {
             invalid_reason: valid.as_ref().and_then(|v| v.as_ref().err()).map(String::as_str),
         })?;
     } else {
-        println!(
+        outln!(
             "{}: {} triangles, {:?} tree: {} nodes, {} leaves ({} empty), depth {}, {} refs ({:.2} per non-empty \
              leaf), SAH cost {:.2}; built in {:.3} s on {} threads ({mtris_per_s:.2} Mtris/s)",
             t.scene.display(),
@@ -76,10 +76,10 @@ pub fn run(t: TreeArgs) -> Result<ExitCode> {
             st.sah_cost,
             loaded.build_s,
             rayon::current_num_threads(),
-        );
+        )?;
         match &valid {
-            Some(Ok(())) => println!("valid"),
-            Some(Err(e)) => println!("INVALID: {e}"),
+            Some(Ok(())) => outln!("valid")?,
+            Some(Err(e)) => outln!("INVALID: {e}")?,
             None => {}
         }
     }

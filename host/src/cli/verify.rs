@@ -61,7 +61,7 @@ pub fn run(v: VerifyArgs) -> Result<ExitCode> {
             agreement: &a,
         })?;
     } else {
-        println!(
+        outln!(
             "scene {} ({}x{}, {} spp, seed {}): CPU {} {:.3} s, GPU {} {:.3} s",
             v.scene.display(),
             s.width,
@@ -72,8 +72,8 @@ pub fn run(v: VerifyArgs) -> Result<ExitCode> {
             cpu.render_s,
             gpu.adapter,
             gpu.render_s
-        );
-        println!(
+        )?;
+        outln!(
             "pixels within {REL_TOLERANCE:e} relative: {}/{} ({:.4}%), bit-identical {}; relMSE {:.3e}; \
              max relative difference {:.3e}",
             a.pixels_within,
@@ -82,12 +82,12 @@ pub fn run(v: VerifyArgs) -> Result<ExitCode> {
             a.bitwise_identical_pixels,
             a.relmse,
             a.max_rel_diff
-        );
-        println!("primary hits identical: {}/{} ({:.4}%)", a.primary_matches, a.pixels, 100.0 * a.primary_share);
+        )?;
+        outln!("primary hits identical: {}/{} ({:.4}%)", a.primary_matches, a.pixels, 100.0 * a.primary_share)?;
         if let Some(d) = &a.first_divergent {
-            println!("first divergent pixel ({}, {}): cpu {:?} gpu {:?}", d.x, d.y, d.cpu, d.gpu);
+            outln!("first divergent pixel ({}, {}): cpu {:?} gpu {:?}", d.x, d.y, d.cpu, d.gpu)?;
         }
-        println!("{}", if a.pass { "AGREE" } else { "DISAGREE" });
+        outln!("{}", if a.pass { "AGREE" } else { "DISAGREE" })?;
     }
     Ok(if a.pass { ExitCode::SUCCESS } else { ExitCode::from(1) })
 }

@@ -14,8 +14,9 @@ pub fn eval(m: &Material, n: Vec3, wi: Vec3) -> (Vec3, f32) {
     (xyz(m.albedo) * INV_PI, c * INV_PI)
 }
 
-/// wi ∝ the cosine lobe; f·cos/pdf = (ρ/π)·cos / (cos/π) = ρ.
-#[inline]
+/// wi ∝ the cosine lobe; f·cos/pdf = (ρ/π)·cos / (cos/π) = ρ. Always inlined: the integrator's
+/// AVX-512 copies (host `render::cpu`) compile only what is inlined into them for AVX-512.
+#[inline(always)]
 pub fn sample(m: &Material, n: Vec3, u1: f32, u2: f32) -> BsdfSample {
     let local = cosine_hemisphere(u1, u2);
     let (t, b) = orthonormal_basis(n);

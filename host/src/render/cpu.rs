@@ -99,7 +99,7 @@ pub fn variant(bits: u32) -> VariantFn {
 }
 
 /// `variant` compiled for `isa`; `Isa::Avx512` only where the CPU has it (`Isa::detect`).
-pub fn variant_for(bits: u32, isa: Isa) -> VariantFn {
+fn variant_for(bits: u32, isa: Isa) -> VariantFn {
     match isa {
         Isa::Baseline => VARIANTS[variant_index(bits)],
         #[cfg(target_arch = "x86_64")]
@@ -112,7 +112,7 @@ pub fn variant_for(bits: u32, isa: Isa) -> VariantFn {
 /// AVX-512 F, VL, BW, DQ and CD (x86-64-v4). Its 32 vector registers hold the traversal's ray
 /// constants without spilling them, and its compares write mask registers that become a bitmask
 /// in one move. Every operation is the same IEEE single-precision one (Rust fuses nothing), so
-/// the images are bit-identical (`tests/render_variants.rs`).
+/// the images are bit-identical (`tests/cli.rs`, `cpu_instruction_sets_render_the_same_image`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Isa {
     Baseline,

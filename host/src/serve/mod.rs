@@ -148,8 +148,10 @@ pub fn run(o: Options) -> Result<()> {
     runtime.block_on(async move {
         let listener = tokio::net::TcpListener::bind(o.bind).await.with_context(|| format!("binding {}", o.bind))?;
         let addr = listener.local_addr()?;
-        println!("listening on http://{addr}/");
-        std::io::stdout().flush()?;
+        // An error, not a panic, where standard output is closed.
+        let mut out = std::io::stdout().lock();
+        writeln!(out, "listening on http://{addr}/").and_then(|_| out.flush()).context("writing the address")?;
+        drop(out);
         axum::serve(listener, router(state)).await.context("serving")
     })
 }

@@ -25,7 +25,10 @@ pub struct Traced {
 }
 
 /// The closest hit (or, with `any_hit`, any hit) with t in (0, t_max) by the chosen traversal.
-#[inline]
+/// Inlined always on the CPU, so that `cast_ray` in the AVX-512 copy compiles the traversal for
+/// it (a plain `#[inline]` left it a call to the baseline code).
+#[cfg_attr(not(target_arch = "spirv"), inline(always))]
+#[cfg_attr(target_arch = "spirv", inline)]
 pub fn query(scene: &SceneView, traversal: u32, origin: Vec3, dir: Vec3, t_max: f32, any_hit: bool) -> Traced {
     query_recorded(scene, traversal, origin, dir, t_max, any_hit, &mut NoRecord)
 }

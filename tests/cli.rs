@@ -326,11 +326,8 @@ fn cpu_instruction_sets_cast_the_same_rays() {
     let mut runs = Vec::new();
     for isa in ["default", "baseline"] {
         let mut cmd = Command::new(env!("CARGO_BIN_EXE_kdtrace"));
-        cmd.args(["rays", &repo("tests/data/meshes/dragon-23k/dragon.obj"), "--width", "48", "--height", "40"]).args([
-            "--repeats",
-            "1",
-            "--json",
-        ]);
+        let scene = repo("tests/data/meshes/dragon-23k/dragon.obj");
+        cmd.args(["rays", &scene, "--width", "48", "--height", "40", "--repeats", "1", "--json"]);
         if isa == "baseline" {
             cmd.env("KDTRACE_CPU_ISA", "baseline");
         }

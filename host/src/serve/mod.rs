@@ -148,10 +148,9 @@ pub fn run(o: Options) -> Result<()> {
     runtime.block_on(async move {
         let listener = tokio::net::TcpListener::bind(o.bind).await.with_context(|| format!("binding {}", o.bind))?;
         let addr = listener.local_addr()?;
-        // An error, not a panic, where standard output is closed.
-        let mut out = std::io::stdout().lock();
-        writeln!(out, "listening on http://{addr}/").and_then(|_| out.flush()).context("writing the address")?;
-        drop(out);
+        // An error, not a panic, where standard output is closed; standard output is
+        // line-buffered, so the line goes out at its newline.
+        writeln!(std::io::stdout(), "listening on http://{addr}/").context("writing the address")?;
         axum::serve(listener, router(state)).await.context("serving")
     })
 }

@@ -1,6 +1,8 @@
 //! The CPU's eight-wide BVH must return what testing every triangle returns: the same distance,
 //! triangle (the lowest id where coincident faces tie) and barycentrics bit for bit, and any-hit
-//! queries must agree with it, for unbounded and for short rays.
+//! queries must agree with it, for unbounded and for short rays. Packets of sixteen rays
+//! (`wide_packet`) must give every ray the same answer, in packets of unrelated rays and in
+//! packets of neighbouring ones.
 #[path = "common/paths.rs"]
 mod paths;
 #[path = "common/rays.rs"]
@@ -16,7 +18,13 @@ use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use rayon::prelude::*;
 use rays::{grid_line_rays, random_point_on, random_unit};
-use shared::{glam::Vec3, kdtree::intersect_brute_force, layout::WIDE_MAX_DEPTH as MAX_DEPTH, wide_bvh};
+use shared::{
+    glam::Vec3,
+    kdtree::{intersect_brute_force, Hit},
+    layout::WIDE_MAX_DEPTH as MAX_DEPTH,
+    wide_bvh,
+    wide_packet::{self, PACKET},
+};
 
 /// The scene with its wide BVH.
 fn view(c: &Compiled) -> shared::scene::SceneView<'_> {
@@ -54,7 +62,45 @@ fn check_rays(c: &Compiled, rays: &[(Vec3, Vec3, f32)]) -> (usize, usize) {
             brute.is_hit() as usize
         })
         .sum::<usize>();
+    check_packets(&scene, rays);
+    // Neighbouring rays in a packet: ordered by direction octant, then origin.
+    let mut sorted = rays.to_vec();
+    let octant = |d: Vec3| (d.x < 0.0) as u32 | ((d.y < 0.0) as u32) << 1 | ((d.z < 0.0) as u32) << 2;
+    sorted.sort_by(|a, b| octant(a.1).cmp(&octant(b.1)).then(a.0.x.total_cmp(&b.0.x)));
+    check_packets(&scene, &sorted);
     (rays.len(), hits)
+}
+
+/// Casts `rays` in packets of `PACKET` (the last one short) and compares every ray's closest
+/// and any hit with the single-ray traversal's, which `check_rays` compares with brute force.
+fn check_packets(scene: &shared::scene::SceneView, rays: &[(Vec3, Vec3, f32)]) {
+    rays.par_chunks(PACKET).for_each(|chunk| {
+        let mut origin = [Vec3::ZERO; PACKET];
+        let mut dir = [Vec3::Z; PACKET];
+        let mut t_max = [0.0; PACKET];
+        for (i, &(o, d, t)) in chunk.iter().enumerate() {
+            (origin[i], dir[i], t_max[i]) = (o, d, t);
+        }
+        let closest = wide_packet::traverse(scene, &origin, &dir, &t_max, chunk.len(), false);
+        let any = wide_packet::traverse(scene, &origin, &dir, &t_max, chunk.len(), true);
+        for (i, &(o, d, t)) in chunk.iter().enumerate() {
+            let single = wide_bvh::traverse(scene, o, d, t, false);
+            let bits = |h: &Hit| [h.t, h.u, h.v, h.w].map(f32::to_bits);
+            assert_eq!(
+                (bits(&closest[i]), closest[i].triangle),
+                (bits(&single), single.triangle),
+                "packet ray {i} o={o:?} d={d:?} t_max={t}: packet t={} (tri {}) single t={} (tri {})",
+                closest[i].t,
+                closest[i].triangle,
+                single.t,
+                single.triangle
+            );
+            assert_eq!(any[i].is_hit(), single.is_hit(), "packet any hit disagrees for o={o:?} d={d:?} t_max={t}");
+            if any[i].is_hit() {
+                assert!(any[i].t < t && any[i].t > 0.0);
+            }
+        }
+    });
 }
 
 /// A third of the rays start anywhere in the (enlarged) box in random directions; a third are
@@ -185,5 +231,12 @@ fn garbage_rays_miss_without_hanging() {
         (Vec3::new(1.0, 1.0, 1.0), Vec3::new(1e-40, 0.0, 0.0)),
     ] {
         assert!(!wide_bvh::traverse(&scene, o, d, f32::MAX, false).is_hit(), "o={o:?} d={d:?}");
+        // The same ray in a packet beside one that hits.
+        let mut origin = [Vec3::new(1.0, 1.0, 1.0); PACKET];
+        let mut dir = [Vec3::new(0.3, -1.0, 0.2); PACKET];
+        (origin[3], dir[3]) = (o, d);
+        let hits = wide_packet::traverse(&scene, &origin, &dir, &[f32::MAX; PACKET], PACKET, false);
+        assert!(!hits[3].is_hit(), "in a packet: o={o:?} d={d:?}");
+        assert_eq!(hits[0].triangle, wide_bvh::traverse(&scene, origin[0], dir[0], f32::MAX, false).triangle);
     }
 }

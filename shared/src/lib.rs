@@ -39,3 +39,5 @@ pub mod trig;
 pub mod vecmath;
 #[cfg(not(target_arch = "spirv"))]
 pub mod wide_bvh;
+#[cfg(not(target_arch = "spirv"))]
+pub mod wide_packet;

@@ -91,3 +91,37 @@ pub fn cast_ray(scene: &SceneView, q: &RayQuery) -> RayResult {
         _pad: [0; 3],
     }
 }
+
+/// The rays of `qs` (at most `wide_packet::PACKET`) into `out`, as `cast_ray` casts each: in one
+/// packet (`wide_packet`) where they all ask for the wide BVH with the same flags, else one by
+/// one. CPU only; inlined always, like `cast_ray`, for the AVX-512 copy.
+#[cfg(not(target_arch = "spirv"))]
+#[inline(always)]
+pub fn cast_packet(scene: &SceneView, qs: &[RayQuery], out: &mut [RayResult]) {
+    use crate::wide_packet::{self, PACKET};
+    let flags = qs.first().map_or(0, |q| q.flags);
+    let packet = (qs.len() <= PACKET)
+        & (out.len() >= qs.len())
+        & ((flags & crate::layout::RAY_WIDE_BVH) != 0)
+        & qs.iter().all(|q| q.flags == flags);
+    if !packet {
+        for (q, r) in qs.iter().zip(out.iter_mut()) {
+            *r = cast_ray(scene, q);
+        }
+        return;
+    }
+    let masks = scene.alpha_masks & ((flags & RAY_ALPHA_MASKS) != 0);
+    let scene = &SceneView { alpha_masks: masks, ..*scene };
+    let mut origin = [Vec3::ZERO; PACKET];
+    let mut dir = [Vec3::Z; PACKET];
+    let mut t_max = [0.0; PACKET];
+    for (i, q) in qs.iter().enumerate() {
+        origin[i] = xyz(q.origin);
+        dir[i] = xyz(q.dir);
+        t_max[i] = q.t_max;
+    }
+    let hits = wide_packet::traverse(scene, &origin, &dir, &t_max, qs.len(), (flags & RAY_ANY_HIT) != 0);
+    for (h, r) in hits.iter().zip(out.iter_mut()).take(qs.len()) {
+        *r = RayResult { t: h.t, triangle: h.triangle, nodes: h.nodes, tests: h.tests, restarts: 0, _pad: [0; 3] };
+    }
+}

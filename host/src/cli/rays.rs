@@ -18,6 +18,14 @@ pub struct RaysArgs {
     /// Timed runs after one warm-up; the fastest counts.
     #[arg(long, default_value_t = 3)]
     repeats: usize,
+    /// CPU, wide BVH: cast runs of 16 consecutive rays (neighbouring pixels) as one packet
+    /// (`shared::wide_packet`), each node loaded once for the packet's rays that reach it
+    #[arg(long)]
+    packets: bool,
+    /// Order each kind's rays by direction octant, then by the Morton code of their origins (as
+    /// a wavefront integrator could sort its rays) before casting them
+    #[arg(long)]
+    sort: bool,
     #[command(flatten)]
     image: ImageArgs,
 }
@@ -31,6 +39,8 @@ struct RaysReport<'a> {
     device: Device,
     adapter: &'a str,
     traversal: Traversal,
+    packets: bool,
+    sorted: bool,
     triangles: usize,
     width: u32,
     height: u32,
@@ -58,12 +68,18 @@ pub fn run(r: RaysArgs) -> Result<ExitCode> {
         Some(g) => s.traversal.for_adapter(g.is_cpu())?,
         None => s.traversal.for_cpu_path(),
     };
+    if r.packets && (g.is_some() || traversal != Traversal::Wide) {
+        bail!("--packets casts through the CPU path's wide BVH: use it with --device cpu and the wide traversal");
+    }
     // K_I prices a leaf test of `leaf_block` triangles; the counts are of triangles.
     let per_triangle = build.intersection_cost as f64 / build.leaf_block.max(1) as f64;
     let mut primary_rate = None;
     for kind in [RayKind::Primary, RayKind::Ao, RayKind::Diffuse] {
-        let batch = make_rays(c, &s, kind, traversal)?;
-        let (t, _) = measure(c, g.as_ref(), kind, &batch, r.repeats)?;
+        let mut batch = make_rays(c, &s, kind, traversal)?;
+        if r.sort {
+            sort_rays(&mut batch, c.bounds_min, c.bounds_max);
+        }
+        let (t, _) = measure(c, g.as_ref(), kind, &batch, r.repeats, r.packets)?;
         let primary = primary_rate.get_or_insert_with(|| t.clone());
         let ideal =
             ideal_mrays_per_s(primary, t.nodes_per_ray, t.tests_per_ray, build.traversal_cost as f64, per_triangle);
@@ -74,6 +90,8 @@ pub fn run(r: RaysArgs) -> Result<ExitCode> {
                 device: r.device,
                 adapter: &adapter,
                 traversal,
+                packets: r.packets,
+                sorted: r.sort,
                 triangles: c.scene.triangles.len(),
                 width: s.width,
                 height: s.height,
@@ -97,4 +115,25 @@ pub fn run(r: RaysArgs) -> Result<ExitCode> {
         }
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Orders `rays` by direction octant, then by the Morton code (21 bits an axis, within the
+/// scene box `lo`..`hi`) of their origins.
+fn sort_rays(rays: &mut [shared::layout::RayQuery], lo: shared::glam::Vec3, hi: shared::glam::Vec3) {
+    fn spread(mut x: u64) -> u64 {
+        x &= 0x1fffff;
+        x = (x | x << 32) & 0x1f00000000ffff;
+        x = (x | x << 16) & 0x1f0000ff0000ff;
+        x = (x | x << 8) & 0x100f00f00f00f00f;
+        x = (x | x << 4) & 0x10c30c30c30c30c3;
+        (x | x << 2) & 0x1249249249249249
+    }
+    let key = |q: &shared::layout::RayQuery| {
+        let p = (shared::glam::Vec3::new(q.origin.x, q.origin.y, q.origin.z) - lo)
+            / (hi - lo).max(shared::glam::Vec3::splat(1e-30));
+        let c = |x: f32| (x.clamp(0.0, 1.0) * 1048575.0) as u64;
+        let oct = ((q.dir.x < 0.0) as u64) | ((q.dir.y < 0.0) as u64) << 1 | ((q.dir.z < 0.0) as u64) << 2;
+        (oct << 61) | (spread(c(p.x)) | spread(c(p.y)) << 1 | spread(c(p.z)) << 2) >> 3
+    };
+    rays.sort_by_key(key);
 }

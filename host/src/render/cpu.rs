@@ -155,6 +155,16 @@ pub fn cast_fn(isa: Isa) -> fn(&SceneView, &RayQuery) -> RayResult {
     }
 }
 
+/// Casts up to `shared::wide_packet::PACKET` rays of a batch at once
+/// (`shared::raycast::cast_packet`) compiled for `isa`.
+pub fn cast_packet_fn(isa: Isa) -> fn(&SceneView, &[RayQuery], &mut [RayResult]) {
+    match isa {
+        Isa::Baseline => shared::raycast::cast_packet,
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx512 => avx512::cast_packet,
+    }
+}
+
 /// The build's own target, as `render --json` names it.
 #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
 const BASELINE_NAME: &str = "x86-64-v3";
@@ -223,6 +233,19 @@ mod avx512 {
     pub fn cast_ray(scene: &SceneView, q: &RayQuery) -> RayResult {
         // SAFETY: as for `render_samples`.
         unsafe { cast_ray_avx512(scene, q) }
+    }
+
+    /// `shared::raycast::cast_packet` compiled for AVX-512.
+    #[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq,avx512cd")]
+    fn cast_packet_avx512(scene: &SceneView, qs: &[RayQuery], out: &mut [RayResult]) {
+        shared::raycast::cast_packet(scene, qs, out)
+    }
+
+    /// A plain function for `cast_packet_avx512`; `cast_packet_fn` hands it out only for
+    /// `Isa::Avx512`.
+    pub fn cast_packet(scene: &SceneView, qs: &[RayQuery], out: &mut [RayResult]) {
+        // SAFETY: as for `render_samples`.
+        unsafe { cast_packet_avx512(scene, qs, out) }
     }
 }
 

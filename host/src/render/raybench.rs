@@ -23,6 +23,7 @@ use shared::raycast::cast_ray;
 use shared::rng::{Sampler, SAMPLER_INDEPENDENT};
 use shared::triangle::{hit_point, unit_normal, RayShear};
 use shared::vecmath::dot;
+use shared::wide_packet::PACKET;
 use std::time::Instant;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, clap::ValueEnum)]
@@ -114,20 +115,25 @@ pub struct Throughput {
     pub restarts_per_ray: f64,
 }
 
-/// Casts `rays` `repeats` times (after one warm-up) and keeps the fastest run.
+/// Casts `rays` `repeats` times (after one warm-up) and keeps the fastest run. With `packets`
+/// the CPU casts runs of `PACKET` consecutive rays as one packet (`shared::wide_packet`; rays
+/// for the wide BVH only, others one by one).
 pub fn measure(
     c: &Compiled,
     gpu: Option<&Gpu>,
     kind: RayKind,
     rays: &[RayQuery],
     repeats: usize,
+    packets: bool,
 ) -> Result<(Throughput, Vec<RayResult>)> {
     if rays.is_empty() {
         bail!("no {kind:?} rays: the camera sees no geometry");
     }
     let params = c.bounds_params();
     let scene = c.view(&params);
-    let cast = crate::render::cpu::cast_fn(crate::render::cpu::Isa::detect());
+    let isa = crate::render::cpu::Isa::detect();
+    let cast = crate::render::cpu::cast_fn(isa);
+    let cast_packet = crate::render::cpu::cast_packet_fn(isa);
     let mut best = f64::INFINITY;
     let mut results = Vec::new();
     for run in 0..=repeats {
@@ -135,7 +141,13 @@ pub fn measure(
             Some(g) => g.cast_timed(c, rays)?,
             None => {
                 let t = Instant::now();
-                let r: Vec<RayResult> = rays.par_iter().map(|q| cast(&scene, q)).collect();
+                let r: Vec<RayResult> = if packets {
+                    let mut r = vec![RayResult::default(); rays.len()];
+                    r.par_chunks_mut(PACKET).zip(rays.par_chunks(PACKET)).for_each(|(r, q)| cast_packet(&scene, q, r));
+                    r
+                } else {
+                    rays.par_iter().map(|q| cast(&scene, q)).collect()
+                };
                 (r, t.elapsed().as_secs_f64())
             }
         };

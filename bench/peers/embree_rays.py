@@ -3,8 +3,13 @@ casts: primary rays through the pixel centres of a pinhole camera, then cosine-d
 diffuse rays from their hits (closest hit both). The figure to hold `kdtrace rays` against.
 
 Usage (after bench/peers.sh has made the venv; DRJIT_LIBLLVM_PATH set as it sets it):
-  bench/.venv/bin/python bench/peers/embree_rays.py SCENE.obj EYE TARGET FOV [SIZE]
-  e.g. ... bench/results/scenes/sponza-sky.obj -11,3,0 11,5,0 55 512
+  bench/.venv/bin/python bench/peers/embree_rays.py SCENE.obj EYE TARGET FOV [SIZE [THREADS]]
+  e.g. ... bench/results/scenes/sponza-sky.obj -11,3,0 11,5,0 55 512 1
+
+THREADS (default: as drjit picks them, one per core) sets drjit's thread count. With THREADS = 1
+and the `embreex` package installed in the venv (`pip install embreex`: Embree 2.17 behind a
+Cython loop), the same rays are also cast one at a time through `rtcIntersect1`, single-ray
+traversal as kdtrace does it (the loop's per-ray overhead included).
 
 Mitsuba loads the OBJ as one mesh (Embree builds its BVH over it); the diffuse rays start 1e-4
 off each hit along its normal, turned toward the camera. Fastest of four timed runs of
@@ -39,6 +44,9 @@ def main():
     mi.set_variant("llvm_ad_rgb")
     obj, eye, target, fov = sys.argv[1], vec(sys.argv[2]), vec(sys.argv[3]), float(sys.argv[4])
     size = int(sys.argv[5]) if len(sys.argv) > 5 else 512
+    threads = int(sys.argv[6]) if len(sys.argv) > 6 else None
+    if threads:
+        dr.set_thread_count(threads)
     scene = mi.load_dict({"type": "scene", "mesh": {"type": "obj", "filename": obj}})
     forward = (target - eye) / np.linalg.norm(target - eye)
     right = np.cross(forward, [0.0, 1.0, 0.0])
@@ -63,8 +71,40 @@ def main():
     dr.eval(diffuse)
     hits = int(np.count_nonzero(np.array(si.is_valid())))
     rate_diffuse = best_rate(lambda: scene.ray_intersect_preliminary(diffuse), n)
-    print(f"Embree via Mitsuba {mi.__version__}, {size}x{size}: primary {rate_primary:.2f} Mrays/s, "
+    print(f"Embree via Mitsuba {mi.__version__}, {size}x{size}, {dr.thread_count()} threads: primary {rate_primary:.2f} Mrays/s, "
           f"diffuse {rate_diffuse:.2f} Mrays/s (from {hits} primary hits; misses cast too)")
+    if threads == 1:
+        single_rays(scene, eye, d, diffuse, n)
+
+
+def single_rays(scene, eye, d, diffuse, n):
+    try:
+        from embreex import rtcore_scene
+        from embreex.mesh_construction import TriangleMesh
+    except ImportError:
+        print("embreex not installed: no single-ray figures")
+        return
+    mesh = scene.shapes()[0]
+    vertices = np.array(mesh.vertex_positions_buffer()).reshape(-1, 3)
+    faces = np.array(mesh.faces_buffer()).reshape(-1, 3)
+    single = rtcore_scene.EmbreeScene()
+    TriangleMesh(single, vertices[faces].astype(np.float32))
+
+    def rate(origins, directions, runs=3):
+        best = math.inf
+        for _ in range(runs):
+            t0 = time.perf_counter()
+            single.run(origins, directions)
+            best = min(best, time.perf_counter() - t0)
+        return n / best / 1e6
+
+    def rows(v):
+        a = np.array(v, dtype=np.float32)
+        return np.ascontiguousarray(a.T if a.shape[0] == 3 else a)
+
+    primary = rate(np.tile(eye.astype(np.float32), (n, 1)), d)
+    print(f"Embree 2.17 rtcIntersect1 (embreex), 1 thread: primary {primary:.2f} Mrays/s, "
+          f"diffuse {rate(rows(diffuse.o), rows(diffuse.d)):.2f} Mrays/s")
 
 
 if __name__ == "__main__":

@@ -57,15 +57,24 @@ struct Entry {
 #[inline(always)]
 pub fn traverse(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32, any_hit: bool) -> Hit {
     if scene.alpha_masks {
-        traverse_with::<true>(scene, origin, dir, t_max, any_hit)
+        traverse_from::<true>(scene, 0, origin, dir, Hit::miss(t_max), any_hit)
     } else {
-        traverse_with::<false>(scene, origin, dir, t_max, any_hit)
+        traverse_from::<false>(scene, 0, origin, dir, Hit::miss(t_max), any_hit)
     }
 }
 
+/// The traversal of the subtree under `root` (a node or leaf reference; 0 is the whole tree)
+/// for a ray whose closest hit so far is `best`: a hit in the subtree replaces it where
+/// `traverse` would. `nodes` and `tests` count this subtree's work alone.
 #[inline(always)]
-fn traverse_with<const MASKS: bool>(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32, any_hit: bool) -> Hit {
-    let mut best = Hit::miss(t_max);
+pub(crate) fn traverse_from<const MASKS: bool>(
+    scene: &SceneView,
+    root: u32,
+    origin: Vec3,
+    dir: Vec3,
+    mut best: Hit,
+    any_hit: bool,
+) -> Hit {
     let tree = scene.wide;
     if tree.nodes.is_empty() {
         return best;
@@ -95,7 +104,7 @@ fn traverse_with<const MASKS: bool>(scene: &SceneView, origin: Vec3, dir: Vec3, 
     // traversal; only slots below `sp` are read, and each was written first.
     let mut stack = [MaybeUninit::<Entry>::uninit(); STACK_SIZE];
     let mut sp = 0usize;
-    let mut child = 0u32;
+    let mut child = root;
     let mut nodes = 0u32;
     let mut tests = 0u32;
     loop {

@@ -8,6 +8,9 @@
 //! A packet visits the union of its rays' nodes, in the order of the nearest entry among its
 //! rays; a child is entered with the mask of the rays whose box test it passed, and a ray whose
 //! hit has come closer than its entry distance drops out when the child is taken off the stack.
+//! A node that only `SWITCH` or fewer of the packet's rays reach is traversed by each of them
+//! alone (`wide_bvh::traverse_from`, its hit so far carried in), as Embree's hybrid
+//! traversal does: incoherent rays part after the first few nodes.
 //! The box test is `wide_bvh`'s, value for value (the near and far planes chosen by the sign of
 //! each ray's direction, the same slack), and the leaf test is the same function, so every ray
 //! gets exactly the hit `wide_bvh::traverse` gives it: the closest in (0, t_max), the lowest
@@ -28,6 +31,12 @@ use core::simd::{Mask, Select, Simd};
 
 /// Rays in a packet: the lanes of one AVX-512 register.
 pub const PACKET: usize = 16;
+
+/// A node reached by this many of the packet's rays or fewer is traversed by each of them
+/// alone (Benthin et al., "Combining Single and Packet-Ray Tracing for Arbitrary Ray
+/// Distributions on the Intel MIC Architecture", TVCG 2012; Embree's hybrid traversal): a
+/// sixteen-lane box test does little more for a few rays than an eight-lane one for each.
+pub const SWITCH: u32 = 5;
 
 type Rays = Simd<f32, PACKET>;
 type RayMask = Mask<i32, PACKET>;
@@ -143,7 +152,25 @@ fn traverse_with<const MASKS: bool>(
     let mut child = 0u32;
     let mut rays = active;
     loop {
-        if child & LEAF_BIT == 0 {
+        if (child & LEAF_BIT == 0) & (rays.count_ones() <= SWITCH) {
+            // Few rays left in this subtree: each goes on alone from here, its hit so far kept.
+            let mut left = rays;
+            while left != 0 {
+                let i = left.trailing_zeros() as usize;
+                left &= left - 1;
+                let h = wide_bvh::traverse_from::<MASKS>(scene, child, origin[i], dir[i], best[i], any_hit);
+                tests[i] += h.tests;
+                nodes[i] += h.nodes;
+                if any_hit & h.is_hit() {
+                    done |= 1 << i;
+                }
+                best[i] = Hit { nodes: 0, tests: 0, ..h };
+                reach[i] = best[i].t;
+            }
+            if done == active {
+                break;
+            }
+        } else if child & LEAF_BIT == 0 {
             nodes += lanes(rays).select(one, Simd::splat(0));
             let n = &tree.nodes[child as usize];
             let b = &n.bounds;

@@ -90,21 +90,16 @@ def single_rays(scene, eye, d, diffuse, n):
     single = rtcore_scene.EmbreeScene()
     TriangleMesh(single, vertices[faces].astype(np.float32))
 
-    def rate(origins, directions, runs=3):
-        best = math.inf
-        for _ in range(runs):
-            t0 = time.perf_counter()
-            single.run(origins, directions)
-            best = min(best, time.perf_counter() - t0)
-        return n / best / 1e6
-
     def rows(v):
-        a = np.array(v, dtype=np.float32)
-        return np.ascontiguousarray(a.T if a.shape[0] == 3 else a)
+        # drjit's vectors convert to arrays of three rows; embreex takes one row per ray.
+        return np.ascontiguousarray(np.array(v, dtype=np.float32).T)
 
-    primary = rate(np.tile(eye.astype(np.float32), (n, 1)), d)
+    origins = np.tile(eye.astype(np.float32), (n, 1))
+    primary = best_rate(lambda: single.run(origins, d), n)
+    diffuse_o, diffuse_d = rows(diffuse.o), rows(diffuse.d)
+    diffuse_rate = best_rate(lambda: single.run(diffuse_o, diffuse_d), n)
     print(f"Embree 2.17 rtcIntersect1 (embreex), 1 thread: primary {primary:.2f} Mrays/s, "
-          f"diffuse {rate(rows(diffuse.o), rows(diffuse.d)):.2f} Mrays/s")
+          f"diffuse {diffuse_rate:.2f} Mrays/s")
 
 
 if __name__ == "__main__":

@@ -348,6 +348,51 @@ fn cpu_instruction_sets_cast_the_same_rays() {
     assert_eq!(runs[0], runs[1], "the instruction sets cast different rays");
 }
 
+/// `rays --pixel-samples N` casts N camera rays a pixel (and as many AO and diffuse rays from
+/// their hits), and packets of one pixel's samples find the hits single rays find.
+#[test]
+fn rays_take_several_samples_a_pixel() {
+    let mut runs = Vec::new();
+    for packets in [false, true] {
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_kdtrace"));
+        let scene = repo("tests/data/meshes/dragon-23k/dragon.obj");
+        cmd.args([
+            "rays",
+            &scene,
+            "--width",
+            "12",
+            "--height",
+            "10",
+            "--pixel-samples",
+            "16",
+            "--repeats",
+            "1",
+            "--json",
+        ]);
+        if packets {
+            cmd.arg("--packets");
+        }
+        let o = cmd.output().unwrap();
+        assert!(o.status.success(), "{}", stderr(&o));
+        let kinds: Vec<(String, u64, u64)> = String::from_utf8(o.stdout)
+            .unwrap()
+            .lines()
+            .map(|l| {
+                let j: serde_json::Value = serde_json::from_str(l).unwrap();
+                assert_eq!(j["pixel_samples"], 16, "{l}");
+                (j["kind"].as_str().unwrap().to_string(), j["rays"].as_u64().unwrap(), j["hits"].as_u64().unwrap())
+            })
+            .collect();
+        assert_eq!(kinds[0].0, "primary");
+        assert_eq!(kinds[0].1, 12 * 10 * 16, "{kinds:?}");
+        // Jittered: some of a pixel's samples leave the dragon's silhouette where others hit it.
+        assert!(kinds[0].2 > 0 && kinds[0].2 < kinds[0].1, "{kinds:?}");
+        assert_eq!(kinds[1].1, kinds[0].2, "one AO ray from every camera ray's hit: {kinds:?}");
+        runs.push(kinds);
+    }
+    assert_eq!(runs[0], runs[1], "packets found other hits than single rays");
+}
+
 /// A reader that leaves early (`| head -1`) ends the command quietly: no panic, exit code 0.
 #[test]
 fn closed_standard_output_ends_quietly() {

@@ -9,7 +9,11 @@ Usage (after bench/peers.sh has made the venv; DRJIT_LIBLLVM_PATH set as it sets
 THREADS (default: as drjit picks them, one per core) sets drjit's thread count. With THREADS = 1
 and the `embreex` package installed in the venv (`pip install embreex`: Embree 2.17 behind a
 Cython loop), the same rays are also cast one at a time through `rtcIntersect1`, single-ray
-traversal as kdtrace does it (the loop's per-ray overhead included).
+traversal as kdtrace does it (the loop's per-ray overhead included). With THREADS = 1 the rays
+(the first 65,536 of each kind) also go one call at a time through Mitsuba's `scalar_rgb` variant,
+whose `ray_intersect_preliminary` is Embree 4's `rtcIntersect1` on the same BVH Mitsuba builds:
+the figure is net of the Python call, timed on as many rays that start outside the scene's box
+and point away from it.
 
 Mitsuba loads the OBJ as one mesh (Embree builds its BVH over it); the diffuse rays start 1e-4
 off each hit along its normal, turned toward the camera. Fastest of four timed runs of
@@ -75,6 +79,38 @@ def main():
           f"diffuse {rate_diffuse:.2f} Mrays/s (from {hits} primary hits; misses cast too)")
     if threads == 1:
         single_rays(scene, eye, d, diffuse, n)
+        scalar_rays(obj, eye, d, diffuse)
+
+
+SCALAR_RAYS = 1 << 16
+
+
+def scalar_rays(obj, eye, d, diffuse):
+    """Embree 4 single rays through Mitsuba's scalar variant, net of the per-call overhead."""
+    diffuse_o, diffuse_d = [np.array(v, dtype=np.float32).T[:SCALAR_RAYS] for v in (diffuse.o, diffuse.d)]
+    mi.set_variant("scalar_rgb")
+    scene = mi.load_dict({"type": "scene", "mesh": {"type": "obj", "filename": obj}})
+    n = min(SCALAR_RAYS, len(d))
+    primary = [mi.Ray3f(mi.Point3f(*eye), mi.Vector3f(*d[i])) for i in range(n)]
+    bounce = [mi.Ray3f(mi.Point3f(*diffuse_o[i]), mi.Vector3f(*diffuse_d[i])) for i in range(n)]
+    lo, hi = scene.bbox().min, scene.bbox().max
+    outside = mi.Point3f(lo.x, hi.y + 1.0, lo.z)
+    away = [mi.Ray3f(outside, mi.Vector3f(0, 1, 0)) for _ in range(n)]
+    cast = scene.ray_intersect_preliminary
+
+    def per_ray(rays, runs=4):
+        best = math.inf
+        for _ in range(runs):
+            t0 = time.perf_counter()
+            for r in rays:
+                cast(r)
+            best = min(best, time.perf_counter() - t0)
+        return best / len(rays)
+
+    call, t_primary, t_diffuse = per_ray(away), per_ray(primary), per_ray(bounce)
+    print(f"Embree in Mitsuba {mi.__version__}, scalar variant (rtcIntersect1), 1 thread, first {n} rays, net of "
+          f"{call * 1e9:.0f} ns a call: primary {1e-6 / (t_primary - call):.2f} Mrays/s, "
+          f"diffuse {1e-6 / (t_diffuse - call):.2f} Mrays/s")
 
 
 def single_rays(scene, eye, d, diffuse, n):

@@ -26,6 +26,11 @@ pub struct RaysArgs {
     /// a wavefront integrator could sort its rays) before casting them
     #[arg(long)]
     sort: bool,
+    /// Camera rays a pixel, one after another, through jittered points (with --packets and 16,
+    /// a packet holds one pixel's samples and the rays from their hits, as Mitsuba's wavefront
+    /// keeps a pixel's samples in adjacent lanes)
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    pixel_samples: u32,
     #[command(flatten)]
     image: ImageArgs,
 }
@@ -41,6 +46,7 @@ struct RaysReport<'a> {
     traversal: Traversal,
     packets: bool,
     sorted: bool,
+    pixel_samples: u32,
     triangles: usize,
     width: u32,
     height: u32,
@@ -75,7 +81,7 @@ pub fn run(r: RaysArgs) -> Result<ExitCode> {
     let per_triangle = build.intersection_cost as f64 / build.leaf_block.max(1) as f64;
     let mut primary_rate = None;
     for kind in [RayKind::Primary, RayKind::Ao, RayKind::Diffuse] {
-        let mut batch = make_rays(c, &s, kind, traversal)?;
+        let mut batch = make_rays(c, &s, kind, traversal, r.pixel_samples)?;
         if r.sort {
             sort_rays(&mut batch, c.bounds_min, c.bounds_max);
         }
@@ -92,6 +98,7 @@ pub fn run(r: RaysArgs) -> Result<ExitCode> {
                 traversal,
                 packets: r.packets,
                 sorted: r.sort,
+                pixel_samples: r.pixel_samples,
                 triangles: c.scene.triangles.len(),
                 width: s.width,
                 height: s.height,

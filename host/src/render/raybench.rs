@@ -37,9 +37,17 @@ pub enum RayKind {
 /// Length of ambient-occlusion rays as a fraction of the scene box's diagonal.
 pub const AO_LENGTH: f32 = 0.1;
 
-/// The rays of one kind for the view in `s`: one camera ray per pixel centre; AO and diffuse rays
-/// start at the camera rays' hits (offset off the surface, on the camera's side).
-pub fn make_rays(c: &Compiled, s: &RenderSettings, kind: RayKind, traversal: Traversal) -> Result<Vec<RayQuery>> {
+/// The rays of one kind for the view in `s`: `per_pixel` camera rays a pixel, one after another
+/// (through its centre when 1, else through uniformly jittered points: the order of a wavefront
+/// integrator that keeps a pixel's samples in adjacent lanes, as Mitsuba's does); AO and diffuse
+/// rays start at the camera rays' hits (offset off the surface, on the camera's side).
+pub fn make_rays(
+    c: &Compiled,
+    s: &RenderSettings,
+    kind: RayKind,
+    traversal: Traversal,
+    per_pixel: u32,
+) -> Result<Vec<RayQuery>> {
     let p = c.params(s, 0, 1)?;
     let flags = match traversal {
         Traversal::Short => RAY_SHORT_STACK,
@@ -51,9 +59,17 @@ pub fn make_rays(c: &Compiled, s: &RenderSettings, kind: RayKind, traversal: Tra
     };
     let flags = flags | if c.alpha_masks { RAY_ALPHA_MASKS } else { 0 };
     let eye = crate::scene::local_frame::point_to_local(s.camera.eye, c.origin);
+    let width = s.width;
     let camera: Vec<RayQuery> = (0..s.height)
-        .flat_map(|y| (0..s.width).map(move |x| (x, y)))
-        .map(|(x, y)| query(eye, primary_direction(&p, x as f32 + 0.5, y as f32 + 0.5), f32::MAX, flags))
+        .flat_map(|y| (0..width).flat_map(move |x| (0..per_pixel).map(move |k| (x, y, k))))
+        .map(|(x, y, k)| {
+            let (jx, jy) = if per_pixel == 1 {
+                (0.5, 0.5)
+            } else {
+                Sampler::new(SAMPLER_INDEPENDENT, y * width + x, k, 0x1e7).next_2d()
+            };
+            query(eye, primary_direction(&p, x as f32 + jx, y as f32 + jy), f32::MAX, flags)
+        })
         .collect();
     if kind == RayKind::Primary {
         return Ok(camera);

@@ -78,16 +78,17 @@ def main():
     print(f"Embree via Mitsuba {mi.__version__}, {size}x{size}, {dr.thread_count()} threads: primary {rate_primary:.2f} Mrays/s, "
           f"diffuse {rate_diffuse:.2f} Mrays/s (from {hits} primary hits; misses cast too)")
     if threads == 1:
-        single_rays(scene, eye, d, diffuse, n)
-        scalar_rays(obj, eye, d, diffuse)
+        # drjit's vectors convert to arrays of three rows; the single-ray loops take one row a ray.
+        diffuse_o, diffuse_d = [np.ascontiguousarray(np.array(v, dtype=np.float32).T) for v in (diffuse.o, diffuse.d)]
+        single_rays(scene, eye, d, diffuse_o, diffuse_d, n)
+        scalar_rays(obj, eye, d, diffuse_o, diffuse_d)
 
 
 SCALAR_RAYS = 1 << 16
 
 
-def scalar_rays(obj, eye, d, diffuse):
+def scalar_rays(obj, eye, d, diffuse_o, diffuse_d):
     """Embree 4 single rays through Mitsuba's scalar variant, net of the per-call overhead."""
-    diffuse_o, diffuse_d = [np.array(v, dtype=np.float32).T[:SCALAR_RAYS] for v in (diffuse.o, diffuse.d)]
     mi.set_variant("scalar_rgb")
     scene = mi.load_dict({"type": "scene", "mesh": {"type": "obj", "filename": obj}})
     n = min(SCALAR_RAYS, len(d))
@@ -98,22 +99,19 @@ def scalar_rays(obj, eye, d, diffuse):
     away = [mi.Ray3f(outside, mi.Vector3f(0, 1, 0)) for _ in range(n)]
     cast = scene.ray_intersect_preliminary
 
-    def per_ray(rays, runs=4):
-        best = math.inf
-        for _ in range(runs):
-            t0 = time.perf_counter()
+    def seconds_per_ray(rays):
+        def loop():
             for r in rays:
                 cast(r)
-            best = min(best, time.perf_counter() - t0)
-        return best / len(rays)
+        return 1e-6 / best_rate(loop, len(rays))
 
-    call, t_primary, t_diffuse = per_ray(away), per_ray(primary), per_ray(bounce)
+    call, t_primary, t_diffuse = seconds_per_ray(away), seconds_per_ray(primary), seconds_per_ray(bounce)
     print(f"Embree in Mitsuba {mi.__version__}, scalar variant (rtcIntersect1), 1 thread, first {n} rays, net of "
           f"{call * 1e9:.0f} ns a call: primary {1e-6 / (t_primary - call):.2f} Mrays/s, "
           f"diffuse {1e-6 / (t_diffuse - call):.2f} Mrays/s")
 
 
-def single_rays(scene, eye, d, diffuse, n):
+def single_rays(scene, eye, d, diffuse_o, diffuse_d, n):
     try:
         from embreex import rtcore_scene
         from embreex.mesh_construction import TriangleMesh
@@ -126,13 +124,8 @@ def single_rays(scene, eye, d, diffuse, n):
     single = rtcore_scene.EmbreeScene()
     TriangleMesh(single, vertices[faces].astype(np.float32))
 
-    def rows(v):
-        # drjit's vectors convert to arrays of three rows; embreex takes one row per ray.
-        return np.ascontiguousarray(np.array(v, dtype=np.float32).T)
-
     origins = np.tile(eye.astype(np.float32), (n, 1))
     primary = best_rate(lambda: single.run(origins, d), n)
-    diffuse_o, diffuse_d = rows(diffuse.o), rows(diffuse.d)
     diffuse_rate = best_rate(lambda: single.run(diffuse_o, diffuse_d), n)
     print(f"Embree 2.17 rtcIntersect1 (embreex), 1 thread: primary {primary:.2f} Mrays/s, "
           f"diffuse {diffuse_rate:.2f} Mrays/s")

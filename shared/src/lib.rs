@@ -11,7 +11,10 @@
 #![cfg_attr(not(test), no_std)]
 // The CPU's eight-lane leaf test (`triangle::RayShear::intersect_block`) uses `core::simd`
 // (the pinned nightly that rust-gpu needs has it); SPIR-V builds never see it.
-#![cfg_attr(not(target_arch = "spirv"), feature(portable_simd))]
+// `lanes` takes its square root from `core::intrinsics::simd` (`std::simd`'s `StdFloat` is not in
+// `core`).
+#![cfg_attr(not(target_arch = "spirv"), feature(portable_simd, core_intrinsics))]
+#![cfg_attr(not(target_arch = "spirv"), allow(internal_features))]
 
 pub use spirv_std::glam;
 
@@ -21,6 +24,8 @@ pub mod exp;
 pub mod features;
 pub mod integrator;
 pub mod kdtree;
+#[cfg(not(target_arch = "spirv"))]
+pub mod lanes;
 pub mod layout;
 pub mod material;
 pub mod numerics;

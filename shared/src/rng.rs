@@ -99,6 +99,13 @@ impl PixelSeeds {
         }
         Self { sets }
     }
+
+    /// Set `set`'s seeds and scrambled zero (the last set's for any later one): what
+    /// `Sampler::next_2d` and `next_3d` use for it.
+    #[inline(always)]
+    pub fn of_set(&self, set: u32) -> ([u32; 4], u32) {
+        self.sets[(set as usize).min(SOBOL_SETS as usize - 1)]
+    }
 }
 
 /// Set `set`'s Sobol seeds: one shuffles the sample index, three scramble the coordinates
@@ -135,7 +142,7 @@ impl Sampler {
     #[inline]
     fn sobol_seeds(&self) -> ([u32; 4], u32) {
         #[cfg(not(target_arch = "spirv"))]
-        return self.seeds.sets[(self.set as usize).min(SOBOL_SETS as usize - 1)];
+        return self.seeds.of_set(self.set);
         #[cfg(target_arch = "spirv")]
         {
             let seeds = sobol_seeds(self.pixel, self.set, self.seed);

@@ -14,6 +14,7 @@ use shared::features::{
 };
 use shared::glam::Vec4;
 use shared::integrator::render_samples_for;
+use shared::lanes::integrator::render_samples_for as lanes_render_samples_for;
 use shared::layout::{RayQuery, RayResult, RenderParams, NO_HIT};
 use shared::raycast::cast_ray;
 use shared::scene::SceneView;
@@ -50,6 +51,28 @@ variants!(
     3592 3593 3594 3595 3596 3597 3598 3599 3608 3609 3610 3611 3612 3613 3614 15903
     4072 4073 4074 4075 4076 4077 4078 4079 4088 4089 4090 4091 4092 4093 4094 16383
 );
+
+/// The variants the lane integrator covers (`shared::lanes::integrator::covers`): the first
+/// fifteen of `CANONICAL`, diffuse alone without the surface bits or the new lights, each
+/// through `shared::lanes::integrator::render_samples_for`, which renders sixteen samples of a
+/// pixel at once and the same image bit for bit.
+macro_rules! lane_variants {
+    ($($bits:literal)*) => {
+        const LANE_CANONICAL: [u32; 15] = [$($bits),*];
+        static LANE_VARIANTS: [VariantFn; 15] = [$(lanes_render_samples_for::<$bits> as VariantFn),*];
+        /// The same compiled for AVX-512 (`avx512::render_samples_lanes`).
+        #[cfg(target_arch = "x86_64")]
+        static LANE_VARIANTS_AVX512: [VariantFn; 15] = [$(avx512::render_samples_lanes::<$bits> as VariantFn),*];
+    };
+}
+lane_variants!(8 9 10 11 12 13 14 15 24 25 26 27 28 29 30);
+
+/// Whether the CPU renders feature bits `bits` with the lane integrator: where it covers
+/// `cpu_variant_bits(bits)`, unless `KDTRACE_CPU_LANES=off` asks for the scalar one (to compare
+/// the two).
+pub fn runs_lanes(bits: u32) -> bool {
+    variant_index(bits) < LANE_CANONICAL.len() && std::env::var("KDTRACE_CPU_LANES").as_deref() != Ok("off")
+}
 
 /// The feature bits the CPU compiles a variant for, covering `bits`: the bits outside the
 /// materials as they are, and diffuse alone or every material kind (a monomorph per material
@@ -100,6 +123,14 @@ pub fn variant(bits: u32) -> VariantFn {
 
 /// `variant` compiled for `isa`; `Isa::Avx512` only where the CPU has it (`Isa::detect`).
 fn variant_for(bits: u32, isa: Isa) -> VariantFn {
+    if runs_lanes(bits) {
+        let i = variant_index(bits);
+        return match isa {
+            Isa::Baseline => LANE_VARIANTS[i],
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx512 => LANE_VARIANTS_AVX512[i],
+        };
+    }
     match isa {
         Isa::Baseline => VARIANTS[variant_index(bits)],
         #[cfg(target_arch = "x86_64")]
@@ -221,6 +252,42 @@ mod avx512 {
     ) {
         // SAFETY: see above: the CPU has every feature the function is compiled for.
         unsafe { render_samples_avx512::<F>(scene, p, x, y, start, count, sum, sum_sq, primary) }
+    }
+
+    /// `shared::lanes::integrator::render_samples_for::<F>` compiled for AVX-512, as
+    /// `render_samples_avx512`.
+    #[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq,avx512cd")]
+    #[allow(clippy::too_many_arguments)]
+    fn render_samples_lanes_avx512<const F: u32>(
+        scene: &SceneView,
+        p: &RenderParams,
+        x: u32,
+        y: u32,
+        start: u32,
+        count: u32,
+        sum: &mut Vec4,
+        sum_sq: &mut Vec4,
+        primary: &mut u32,
+    ) {
+        lanes_render_samples_for::<F>(scene, p, x, y, start, count, sum, sum_sq, primary)
+    }
+
+    /// A `VariantFn` for `render_samples_lanes_avx512::<F>`; only in `LANE_VARIANTS_AVX512`,
+    /// handed out as `VARIANTS_AVX512` is.
+    #[allow(clippy::too_many_arguments)]
+    pub fn render_samples_lanes<const F: u32>(
+        scene: &SceneView,
+        p: &RenderParams,
+        x: u32,
+        y: u32,
+        start: u32,
+        count: u32,
+        sum: &mut Vec4,
+        sum_sq: &mut Vec4,
+        primary: &mut u32,
+    ) {
+        // SAFETY: as for `render_samples`.
+        unsafe { render_samples_lanes_avx512::<F>(scene, p, x, y, start, count, sum, sum_sq, primary) }
     }
 
     /// `shared::raycast::cast_ray` compiled for AVX-512 (the wide BVH's traversal is inlined).
@@ -550,6 +617,17 @@ mod tests {
         }
         for (i, &c) in CANONICAL.iter().enumerate() {
             assert_eq!(variant_index(c), i);
+        }
+    }
+
+    #[test]
+    fn the_lane_variants_are_those_the_lane_integrator_covers() {
+        for (i, &c) in CANONICAL.iter().enumerate() {
+            let lanes = i < LANE_CANONICAL.len();
+            assert_eq!(lanes, shared::lanes::integrator::covers(c), "variant {i}: bits {c:#b}");
+            if lanes {
+                assert_eq!(LANE_CANONICAL[i], c);
+            }
         }
     }
 }

@@ -42,6 +42,8 @@ pub struct Features {
     pub variant: &'static str,
     /// The feature bits of that variant (`FEATURES_ALL` for the generic code).
     pub variant_bits: u32,
+    /// Whether the CPU ran it sixteen samples at a time (`shared::lanes`).
+    pub lanes: bool,
 }
 
 /// Each bit's name, as `render --json` and the tests print them.
@@ -183,6 +185,7 @@ pub fn analyse(c: &Compiled, s: &RenderSettings) -> Features {
         indirect,
         variant: if s.specialize { "specialised" } else { "generic" },
         variant_bits: if s.specialize { bits } else { FEATURES_ALL },
+        lanes: false,
     }
 }
 

@@ -1,0 +1,354 @@
+//! The path loop of `crate::integrator` for sixteen samples of one pixel in lockstep: lane i
+//! follows sample `start + i` vertex by vertex, and a lane whose path has ended stays masked
+//! off until the last one ends. Every step is the scalar integrator's for the variants `covers`
+//! admits, in its order; the sampler's sets stay in step because every live path is at the same
+//! vertex.
+//!
+//! The camera rays of a full group of sixteen are traced as one packet through the wide BVH
+//! (`wide_packet`, which finds each ray's own hit): they leave one pixel in nearly one
+//! direction. The rays after them are traced one by one: from the first vertex on, a pixel's
+//! rays are as incoherent as any, and packets of them were slower (BENCHMARKS.md, "Packets of
+//! sixteen rays").
+use super::sampler::LaneSampler;
+use super::warp::{
+    cosine_hemisphere, offset_ray_origin, orthonormal_basis, power_heuristic, primary_direction, uniform_triangle,
+    Triangles,
+};
+use super::{sqrt, F, LANES, M, U, V3};
+use crate::features::{
+    Variant, FEATURE_DIFFUSE, FEATURE_EMITTERS, FEATURE_ENVIRONMENT, FEATURE_ENVIRONMENT_MAP, FEATURE_INDIRECT,
+    FEATURE_MANY_EMITTERS, FEATURE_MATERIALS, FEATURE_PUNCTUAL,
+};
+use crate::glam::{Vec3, Vec4};
+use crate::integrator::{RR_MAX_SURVIVAL, SHADOW_EPSILON};
+use crate::kdtree::Hit;
+use crate::layout::{RenderParams, AOV_RADIANCE, NO_HIT, NO_LIGHT, TRAVERSAL_WIDE_BVH};
+use crate::numerics::sanitize;
+use crate::raycast::query;
+use crate::rng::PixelSeeds;
+use crate::sampling::{remap_in_light, select_light, INV_PI};
+use crate::scene::SceneView;
+use crate::vecmath::xyz;
+use core::simd::cmp::{SimdPartialEq, SimdPartialOrd};
+use core::simd::num::SimdFloat;
+use core::simd::Select;
+
+/// The features this integrator implements: Lambertian materials alone, emitting triangles
+/// (one or many), a constant environment, indirect light. Textures, alpha masks, vertex
+/// normals, other materials, environment maps and punctual lights go to the scalar integrator.
+pub const COVERED: u32 =
+    FEATURE_EMITTERS | FEATURE_MANY_EMITTERS | FEATURE_ENVIRONMENT | FEATURE_DIFFUSE | FEATURE_INDIRECT;
+
+/// Whether a variant with feature bits `features` runs here (`COVERED`, with diffuse the only
+/// material kind).
+#[inline(always)]
+pub const fn covers(features: u32) -> bool {
+    (features & !COVERED == 0) & (features & FEATURE_MATERIALS == FEATURE_DIFFUSE)
+}
+
+/// Calls for fewer samples a pixel than this run the scalar integrator: a group's cost hardly
+/// falls with its live lanes, so a pass of one sample a pixel (a time-limited render's first,
+/// the web UI's) would pay for sixteen.
+pub const MIN_SAMPLES: u32 = 4;
+
+/// `integrator::render_samples_for::<FEATURES>`, the same sums bit for bit: sixteen samples at
+/// a time where `covers(FEATURES)` and the image is radiance, the scalar integrator otherwise.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub fn render_samples_for<const FEATURES: u32>(
+    scene: &SceneView,
+    p: &RenderParams,
+    x: u32,
+    y: u32,
+    start: u32,
+    count: u32,
+    sum: &mut Vec4,
+    sum_sq: &mut Vec4,
+    primary: &mut u32,
+) {
+    if !covers(FEATURES) | (p.aov != AOV_RADIANCE) | (count < MIN_SAMPLES) {
+        crate::integrator::render_samples_for::<FEATURES>(scene, p, x, y, start, count, sum, sum_sq, primary);
+        return;
+    }
+    let v = Variant::new(FEATURES, p);
+    let pixel = y * p.width + x;
+    let seeds = PixelSeeds::new(p.sampler, pixel, p.seed);
+    let (mut acc, mut acc_sq) = (*sum, *sum_sq);
+    let end = start + count;
+    let mut s = start;
+    while s < end {
+        let n = (end - s).min(LANES as u32);
+        let samples = U::from_array(core::array::from_fn(|i| s.wrapping_add(i as u32)));
+        let live = M::from_array(core::array::from_fn(|i| (i as u32) < n));
+        let rng = LaneSampler::new(p.sampler, pixel, samples, p.seed, seeds);
+        let (radiance, first) = trace_paths(scene, p, v, x, y, rng, live);
+        if s == 0 {
+            *primary = first[0];
+        }
+        // Summed in sample order, as the scalar integrator sums them.
+        for i in 0..n as usize {
+            let (l, bad) = sanitize(radiance.lane(i), false);
+            acc += Vec4::new(l.x, l.y, l.z, if bad { 1.0 } else { 0.0 });
+            acc_sq += Vec4::new(l.x * l.x, l.y * l.y, l.z * l.z, 0.0);
+        }
+        s += n;
+    }
+    *sum = acc;
+    *sum_sq = acc_sq;
+}
+
+/// The closest hits of sixteen rays, as rows: the triangle (`NO_HIT` for a miss or a lane
+/// without a ray), the distance and the unnormalised barycentric weights.
+struct Hits {
+    triangle: [u32; LANES],
+    t: [f32; LANES],
+    u: [f32; LANES],
+    v: [f32; LANES],
+    w: [f32; LANES],
+}
+
+/// The closest hits of the live lanes' rays; a camera ray group of sixteen as one packet.
+#[inline(always)]
+fn trace_closest(scene: &SceneView, p: &RenderParams, origin: V3, dir: V3, live: M, packet: bool) -> Hits {
+    let mut h = Hits { triangle: [NO_HIT; LANES], t: [0.0; LANES], u: [0.0; LANES], v: [0.0; LANES], w: [0.0; LANES] };
+    let mut put = |i: usize, hit: Hit| {
+        (h.triangle[i], h.t[i], h.u[i], h.v[i], h.w[i]) = (hit.triangle, hit.t, hit.u, hit.v, hit.w);
+    };
+    if packet & live.all() & (p.traversal == TRAVERSAL_WIDE_BVH) {
+        let o = core::array::from_fn(|i| origin.lane(i));
+        let d = core::array::from_fn(|i| dir.lane(i));
+        let hits = crate::wide_packet::traverse(scene, &o, &d, &[f32::MAX; LANES], LANES, false);
+        for (i, hit) in hits.into_iter().enumerate() {
+            put(i, hit);
+        }
+    } else {
+        for i in 0..LANES {
+            if live.test(i) {
+                put(i, query(scene, p.traversal, origin.lane(i), dir.lane(i), f32::MAX, false).hit);
+            }
+        }
+    }
+    h
+}
+
+/// What a vertex needs of the triangles hit (or picked) by the live lanes: vertices, stored
+/// normals, material albedo and emission, light-table entries.
+struct Gathered {
+    tris: Triangles,
+    albedo: V3,
+    emission: V3,
+    light: [u32; LANES],
+}
+
+#[inline(always)]
+fn gather(scene: &SceneView, triangle: &[u32; LANES], live: M) -> Gathered {
+    // Rows of the sixteen lanes' values: v0, v1, v2 (x, y, z), the stored normal, albedo and
+    // emission.
+    let mut rows = [[0.0f32; LANES]; 18];
+    let mut light = [NO_LIGHT; LANES];
+    for i in 0..LANES {
+        if live.test(i) {
+            let t = &scene.triangles[triangle[i] as usize];
+            let info = scene.info[triangle[i] as usize];
+            let m = &scene.materials[info.material as usize];
+            let values = [
+                t.v0.x,
+                t.v0.y,
+                t.v0.z,
+                t.v1.x,
+                t.v1.y,
+                t.v1.z,
+                t.v2.x,
+                t.v2.y,
+                t.v2.z,
+                t.v0.w,
+                t.v1.w,
+                t.v2.w,
+                m.albedo.x,
+                m.albedo.y,
+                m.albedo.z,
+                m.emission.x,
+                m.emission.y,
+                m.emission.z,
+            ];
+            for (row, value) in rows.iter_mut().zip(values) {
+                row[i] = value;
+            }
+            light[i] = info.light;
+        }
+    }
+    let v = |k: usize| V3::new(F::from_array(rows[k]), F::from_array(rows[k + 1]), F::from_array(rows[k + 2]));
+    Gathered { tris: Triangles { v0: v(0), v1: v(3), v2: v(6), n: v(9) }, albedo: v(12), emission: v(15), light }
+}
+
+/// `integrator::trace_path` for the live lanes' samples of pixel (px, py): their radiance, and
+/// the triangle each camera ray hit first.
+#[inline(always)]
+fn trace_paths(
+    scene: &SceneView,
+    p: &RenderParams,
+    v: Variant,
+    px: u32,
+    py: u32,
+    mut rng: LaneSampler,
+    live: M,
+) -> (V3, [u32; LANES]) {
+    let zero = F::splat(0.0);
+    let (jx, jy) = rng.next_2d();
+    let mut origin = V3::splat(xyz(p.eye));
+    let mut dir = primary_direction(p, F::splat(px as f32) + jx, F::splat(py as f32) + jy);
+    let mut beta = V3::splat(Vec3::ONE);
+    let mut radiance = V3::ZERO;
+    let mut bsdf_pdf = zero;
+    let mut bounce = 0u32;
+    let mut first = [NO_HIT; LANES];
+    let mut alive = live;
+    let lights =
+        (v.has(FEATURE_EMITTERS) | v.has(FEATURE_ENVIRONMENT_MAP) | v.has(FEATURE_PUNCTUAL)) & (scene.light_count > 0);
+    let many = v.has(FEATURE_MANY_EMITTERS);
+    while alive.any() {
+        let hits = trace_closest(scene, p, origin, dir, alive, bounce == 0);
+        if bounce == 0 {
+            first = hits.triangle;
+        }
+        let hit = U::from_array(hits.triangle).simd_ne(U::splat(NO_HIT)) & alive;
+        let escaped = alive & !hit;
+        if v.has(FEATURE_ENVIRONMENT) & escaped.any() {
+            radiance = V3::select(escaped, radiance + beta * V3::splat(xyz(p.environment)), radiance);
+        }
+        alive = hit;
+        if !alive.any() {
+            break;
+        }
+
+        // `shade_vertex`: the sets first, in the scalar order.
+        let last = !v.has(FEATURE_INDIRECT) | (bounce == v.max_bounces + 1);
+        let (u_select, u_light) = if lights & !last { rng.next_2d() } else { (zero, zero) };
+        let [ub1, ub2, u_roulette] = if last { [zero; 3] } else { rng.next_3d() };
+        let g = gather(scene, &hits.triangle, alive);
+        let t = F::from_array(hits.t);
+        let ng = g.tris.geometric_normal();
+        let n = g.tris.n;
+        let (pos, error) = g.tris.hit_point(F::from_array(hits.u), F::from_array(hits.v), F::from_array(hits.w));
+        let front = ng.dot(dir).simd_lt(zero);
+
+        if v.has(FEATURE_EMITTERS) {
+            let le = V3::select(front, g.emission, V3::ZERO);
+            let emits = le.any_positive() & alive;
+            if emits.any() {
+                let mut weight = F::splat(1.0);
+                if bounce > 0 {
+                    let (mut pmf, mut area, mut entry) = ([1.0f32; LANES], [1.0f32; LANES], [false; LANES]);
+                    for i in 0..LANES {
+                        if emits.test(i) & (g.light[i] != NO_LIGHT) {
+                            let l = scene.lights[g.light[i] as usize];
+                            (pmf[i], area[i], entry[i]) = (l.pmf, l.area, true);
+                        }
+                    }
+                    let dist2 = t * t * dir.dot(dir);
+                    let cos_l = n.dot(dir.normalize()).abs();
+                    let light_pdf = F::from_array(pmf) * dist2 / (cos_l * F::from_array(area));
+                    weight = M::from_array(entry).select(power_heuristic(bsdf_pdf, light_pdf), weight);
+                }
+                radiance = V3::select(emits, radiance + (beta * le).scale(weight), radiance);
+            }
+        }
+        if last {
+            break;
+        }
+
+        let nf = V3::select(front, n, -n);
+        let spawn = offset_ray_origin(pos, error, nf);
+        // Lambertian and without vertex normals: the shading normal is the flat one.
+        let ns = nf;
+        if lights {
+            next_event(scene, p, many, &g, alive, pos, error, spawn, nf, ns, beta, u_select, u_light, &mut radiance);
+        }
+
+        // The Lambertian BSDF sample (`material::diffuse::sample`); no lobe to pick.
+        let local = cosine_hemisphere(ub1, ub2);
+        let (tb, bb) = orthonormal_basis(ns);
+        let wi = tb.scale(local.x) + bb.scale(local.y) + ns.scale(local.z);
+        let pdf = local.z * F::splat(INV_PI);
+        alive &= !pdf.simd_le(zero);
+        beta = V3::select(alive, beta * g.albedo, beta);
+        bsdf_pdf = pdf;
+        bounce += 1;
+        if bounce >= v.rr_start {
+            let survive = beta.x.simd_max(beta.y).simd_max(beta.z).simd_min(F::splat(RR_MAX_SURVIVAL));
+            alive &= !u_roulette.simd_ge(survive);
+            beta = beta.divide(survive);
+        }
+        origin = spawn;
+        dir = wi;
+    }
+    (radiance, first)
+}
+
+/// Next-event estimation toward emitting triangles (`shade_vertex`'s light sample) for the
+/// live lanes: a light picked per lane, a point on it, the shadow rays one by one, the
+/// unblocked lanes' MIS-weighted contributions added to `radiance`.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn next_event(
+    scene: &SceneView,
+    p: &RenderParams,
+    many: bool,
+    g: &Gathered,
+    alive: M,
+    pos: V3,
+    error: F,
+    spawn: V3,
+    nf: V3,
+    ns: V3,
+    beta: V3,
+    u_select: F,
+    u_light: F,
+    radiance: &mut V3,
+) {
+    let zero = F::splat(0.0);
+    let mut triangle = [0u32; LANES];
+    let (mut pmf, mut area, mut u1) = ([0.0f32; LANES], [1.0f32; LANES], u_select.to_array());
+    for i in 0..LANES {
+        if alive.test(i) {
+            let index = if many { select_light(scene.lights, scene.light_count, u1[i]) } else { 0 };
+            let light = scene.lights[index as usize];
+            if many {
+                u1[i] = remap_in_light(scene.lights, index, u1[i]);
+            }
+            (triangle[i], pmf[i], area[i]) = (light.triangle, light.pmf, light.area);
+        }
+    }
+    let lg = gather(scene, &triangle, alive);
+    let (b0, b1, b2) = uniform_triangle(F::from_array(u1), u_light);
+    let (q, q_error) = lg.tris.interpolate(b0, b1, b2);
+    let nl = lg.tris.n;
+    let to_light = q - pos;
+    let dist2 = to_light.dot(to_light);
+    let wi = to_light.scale(F::splat(1.0) / sqrt(dist2));
+    let cos_l = -nl.dot(wi);
+    // The Lambertian BSDF's value and density (`material::diffuse::eval`).
+    let cos_i = ns.dot(wi);
+    let pdf_bsdf = cos_i.simd_gt(zero).select(cos_i * F::splat(INV_PI), zero);
+    let f = g.albedo.scale(F::splat(INV_PI));
+    let valid = alive & cos_l.simd_gt(zero) & pdf_bsdf.simd_gt(zero) & dist2.simd_gt(zero);
+    if !valid.any() {
+        return;
+    }
+    let light_pdf = F::from_array(pmf) * dist2 / (cos_l * F::from_array(area));
+    let target = offset_ray_origin(q, q_error, nl);
+    let behind = nf.dot(wi).simd_lt(zero);
+    let from =
+        if (behind & valid).any() { V3::select(behind, offset_ray_origin(pos, error, -nf), spawn) } else { spawn };
+    let shadow_dir = target - from;
+    let mut unblocked = [false; LANES];
+    for (i, u) in unblocked.iter_mut().enumerate() {
+        if valid.test(i) {
+            *u = !query(scene, p.traversal, from.lane(i), shadow_dir.lane(i), 1.0 - SHADOW_EPSILON, true).hit.is_hit();
+        }
+    }
+    let unblocked = M::from_array(unblocked) & valid;
+    let weight = power_heuristic(light_pdf, pdf_bsdf);
+    let added = (beta * f * lg.emission).scale(cos_i.abs() * weight / light_pdf);
+    *radiance = V3::select(unblocked, *radiance + added, *radiance);
+}

@@ -1,0 +1,186 @@
+//! `rng::Sampler` for sixteen samples of one pixel: lane i draws what `Sampler` draws for its
+//! sample, set by set. The samples of one pixel share the Sobol sets' seeds (`PixelSeeds`), and
+//! paths in lockstep draw the same set at the same time, so only the sample index differs
+//! between lanes: the scrambles, the Sobol matrices and the hashes are integer operations on
+//! sixteen indices at once.
+use super::{F, U};
+use crate::rng::{PixelSeeds, SAMPLER_SOBOL, SOBOL_SETS};
+use core::simd::cmp::SimdPartialEq;
+use core::simd::num::SimdUint;
+use core::simd::Select;
+
+/// `sobol::laine_karras`, lane by lane.
+#[inline(always)]
+fn laine_karras(x: U, seed: u32) -> U {
+    let mut x = x + U::splat(seed);
+    x ^= x * U::splat(0x6c50_b47c);
+    x ^= x * U::splat(0xb82f_1e52);
+    x ^= x * U::splat(0xc7af_e638);
+    x ^= x * U::splat(0x8d22_f6e6);
+    x
+}
+
+/// `sobol::superset_sum`, lane by lane.
+#[inline(always)]
+fn superset_sum(s: U) -> U {
+    let mut y = s;
+    y ^= (y >> 1) & U::splat(0x5555_5555);
+    y ^= (y >> 2) & U::splat(0x3333_3333);
+    y ^= (y >> 4) & U::splat(0x0f0f_0f0f);
+    y ^= (y >> 8) & U::splat(0x00ff_00ff);
+    y ^= (y >> 16) & U::splat(0x0000_ffff);
+    y
+}
+
+/// `rng::pcg4d`, lane by lane (the vector operations wrap, as its `wrapping_` ones).
+#[inline(always)]
+pub fn pcg4d(a: U, b: U, c: U, d: U) -> [U; 4] {
+    let (m, k) = (U::splat(1664525), U::splat(1013904223));
+    let (mut x, mut y, mut z, mut w) = (a * m + k, b * m + k, c * m + k, d * m + k);
+    x += y * w;
+    y += z * x;
+    z += x * y;
+    w += y * z;
+    x ^= x >> 16;
+    y ^= y >> 16;
+    z ^= z >> 16;
+    w ^= w >> 16;
+    x += y * w;
+    y += z * x;
+    z += x * y;
+    w += y * z;
+    [x, y, z, w]
+}
+
+/// `rng::u32_to_unit_f32`, lane by lane.
+#[inline(always)]
+pub fn unit(x: U) -> F {
+    (x >> 8).cast::<f32>() * F::splat(1.0 / 16_777_216.0)
+}
+
+/// `sobol::scrambled_sobol2` and the third coordinate of `scrambled_sobol3` when `three`.
+#[inline(always)]
+fn scrambled_sobol(reversed: U, seeds: ([u32; 4], u32), three: bool) -> [U; 3] {
+    let (s, zero) = seeds;
+    let shuffled = laine_karras(reversed, s[0]) ^ U::splat(zero);
+    // `sobol2_reversed`: dimension 0 is the index itself, dimension 1 its superset sums.
+    let x0 = shuffled.reverse_bits();
+    let x1 = superset_sum(x0);
+    let mut x2 = U::splat(0);
+    if three {
+        // `sobol3_reversed`'s loop over the index's bits, top first, until every lane's
+        // remaining bits are zero (a lane whose bits ran out adds nothing).
+        let (mut w2, mut w2_next, mut r) = (U::splat(1), U::splat(3), shuffled);
+        let top = U::splat(0x8000_0000);
+        while r.simd_ne(U::splat(0)).any() {
+            x2 = (r & top).simd_ne(U::splat(0)).select(x2 ^ w2, x2);
+            r <<= 1;
+            let w2_after = w2_next ^ w2 ^ (w2 << 2);
+            w2 = w2_next;
+            w2_next = w2_after;
+        }
+    }
+    [
+        laine_karras(x0, s[1]).reverse_bits(),
+        laine_karras(x1, s[2]).reverse_bits(),
+        if three { laine_karras(x2, s[3]).reverse_bits() } else { U::splat(0) },
+    ]
+}
+
+/// The sampler of sixteen samples of one pixel: lane i is `Sampler::new(kind, pixel,
+/// sample[i], seed)`.
+#[derive(Clone, Copy)]
+pub struct LaneSampler {
+    kind: u32,
+    pixel: u32,
+    seed: u32,
+    set: u32,
+    sample: U,
+    reversed: U,
+    seeds: PixelSeeds,
+}
+
+impl LaneSampler {
+    /// The samples `sample` of pixel `pixel`, whose seeds are `seeds` (`PixelSeeds::new(kind,
+    /// pixel, seed)`).
+    #[inline(always)]
+    pub fn new(kind: u32, pixel: u32, sample: U, seed: u32, seeds: PixelSeeds) -> Self {
+        Self { kind, pixel, seed, set: 0, sample, reversed: sample.reverse_bits(), seeds }
+    }
+
+    #[inline(always)]
+    fn bits(&mut self, three: bool) -> [U; 3] {
+        let bits = if (self.kind == SAMPLER_SOBOL) & (self.set < SOBOL_SETS) {
+            scrambled_sobol(self.reversed, self.seeds.of_set(self.set), three)
+        } else {
+            let h = pcg4d(U::splat(self.pixel), self.sample, U::splat(self.set), U::splat(self.seed));
+            [h[0], h[1], h[2]]
+        };
+        self.set += 1;
+        bits
+    }
+
+    /// `Sampler::next_3d`.
+    #[inline(always)]
+    pub fn next_3d(&mut self) -> [F; 3] {
+        let b = self.bits(true);
+        [unit(b[0]), unit(b[1]), unit(b[2])]
+    }
+
+    /// `Sampler::next_2d`.
+    #[inline(always)]
+    pub fn next_2d(&mut self) -> (F, F) {
+        let b = self.bits(false);
+        (unit(b[0]), unit(b[1]))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rng::{pcg4d as pcg4d_scalar, Sampler, SAMPLER_INDEPENDENT};
+
+    #[test]
+    fn lanes_draw_what_the_scalar_sampler_draws() {
+        for kind in [SAMPLER_SOBOL, SAMPLER_INDEPENDENT] {
+            for (pixel, seed, first) in
+                [(0u32, 0u32, 0u32), (77, 3, 16), (65_535, 0xdead, 1_000_003), (5, 1, u32::MAX - 15)]
+            {
+                let samples = U::from_array(core::array::from_fn(|i| first.wrapping_add(i as u32 * 7)));
+                let seeds = PixelSeeds::new(kind, pixel, seed);
+                let mut lanes = LaneSampler::new(kind, pixel, samples, seed, seeds);
+                let mut scalar: [Sampler; 16] = core::array::from_fn(|i| Sampler::new(kind, pixel, samples[i], seed));
+                for set in 0..(SOBOL_SETS + 3) {
+                    if set % 2 == 0 {
+                        let (a, b) = lanes.next_2d();
+                        for (i, s) in scalar.iter_mut().enumerate() {
+                            let (x, y) = s.next_2d();
+                            assert_eq!(
+                                (a[i].to_bits(), b[i].to_bits()),
+                                (x.to_bits(), y.to_bits()),
+                                "{kind} {pixel} {set} {i}"
+                            );
+                        }
+                    } else {
+                        let l = lanes.next_3d();
+                        for (i, s) in scalar.iter_mut().enumerate() {
+                            let x = s.next_3d();
+                            for d in 0..3 {
+                                assert_eq!(l[d][i].to_bits(), x[d].to_bits(), "{kind} {pixel} {set} {i} {d}");
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn hash_matches_lane_by_lane() {
+        let a = U::from_array(core::array::from_fn(|i| (i as u32).wrapping_mul(0x9e37_79b9)));
+        let h = pcg4d(a, a ^ U::splat(5), U::splat(7), a >> 3);
+        for i in 0..16 {
+            assert_eq!([h[0][i], h[1][i], h[2][i], h[3][i]], pcg4d_scalar(a[i], a[i] ^ 5, 7, a[i] >> 3));
+        }
+    }
+}

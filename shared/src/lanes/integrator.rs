@@ -4,17 +4,19 @@
 //! admits, in its order; the sampler's sets stay in step because every live path is at the same
 //! vertex.
 //!
-//! The camera rays of a full group of sixteen are traced as one packet through the wide BVH
-//! (`wide_packet`, which finds each ray's own hit): they leave one pixel in nearly one
+//! In a small scene the sixteen rays of a step are cast together against every triangle
+//! (`brute`). Elsewhere the camera rays of a full group are traced as one packet through the
+//! wide BVH (`wide_packet`, which finds each ray's own hit): they leave one pixel in nearly one
 //! direction. The rays after them are traced one by one: from the first vertex on, a pixel's
 //! rays are as incoherent as any, and packets of them were slower (BENCHMARKS.md, "Packets of
-//! sixteen rays").
+//! sixteen rays"). Every way finds the hit brute force finds, so the image does not depend on
+//! which ran.
 use super::sampler::LaneSampler;
 use super::warp::{
     cosine_hemisphere, offset_ray_origin, orthonormal_basis, power_heuristic, primary_direction, uniform_triangle,
     Triangles,
 };
-use super::{sqrt, F, LANES, M, U, V3};
+use super::{brute, sqrt, Hits, F, LANES, M, U, V3};
 use crate::features::{
     Variant, FEATURE_DIFFUSE, FEATURE_EMITTERS, FEATURE_ENVIRONMENT, FEATURE_ENVIRONMENT_MAP, FEATURE_INDIRECT,
     FEATURE_MANY_EMITTERS, FEATURE_MATERIALS, FEATURE_PUNCTUAL,
@@ -97,23 +99,25 @@ pub fn render_samples_for<const FEATURES: u32>(
     *sum_sq = acc_sq;
 }
 
-/// The closest hits of sixteen rays, as rows: the triangle (`NO_HIT` for a miss or a lane
-/// without a ray), the distance and the unnormalised barycentric weights.
-struct Hits {
-    triangle: [u32; LANES],
-    t: [f32; LANES],
-    u: [f32; LANES],
-    v: [f32; LANES],
-    w: [f32; LANES],
+/// Whether the live lanes' rays are cast by brute force (`brute`): in a scene without alpha
+/// masks whose triangles are few for the rays (`brute::TRIANGLES_PER_RAY`).
+#[inline(always)]
+fn brute_force(scene: &SceneView, live: M) -> bool {
+    let rays = live.to_bitmask().count_ones() as usize;
+    (scene.triangles.len() <= rays * brute::TRIANGLES_PER_RAY) & !scene.alpha_masks
 }
 
-/// The closest hits of the live lanes' rays; a camera ray group of sixteen as one packet.
+/// The closest hits of the live lanes' rays: by brute force in a small scene, else one by one
+/// by the chosen traversal, a camera ray group of sixteen as one packet.
 #[inline(always)]
 fn trace_closest(scene: &SceneView, p: &RenderParams, origin: V3, dir: V3, live: M, packet: bool) -> Hits {
-    let mut h = Hits { triangle: [NO_HIT; LANES], t: [0.0; LANES], u: [0.0; LANES], v: [0.0; LANES], w: [0.0; LANES] };
-    let mut put = |i: usize, hit: Hit| {
-        (h.triangle[i], h.t[i], h.u[i], h.v[i], h.w[i]) = (hit.triangle, hit.t, hit.u, hit.v, hit.w);
-    };
+    if brute_force(scene, live) {
+        return brute::cast(scene.triangles, origin, dir, F::splat(f32::MAX), live, false);
+    }
+    let (mut triangle, mut t, mut u, mut v, mut w) =
+        ([NO_HIT; LANES], [0.0; LANES], [0.0; LANES], [0.0; LANES], [0.0; LANES]);
+    let mut put =
+        |i: usize, hit: Hit| (triangle[i], t[i], u[i], v[i], w[i]) = (hit.triangle, hit.t, hit.u, hit.v, hit.w);
     if packet & live.all() & (p.traversal == TRAVERSAL_WIDE_BVH) {
         let o = core::array::from_fn(|i| origin.lane(i));
         let d = core::array::from_fn(|i| dir.lane(i));
@@ -128,7 +132,13 @@ fn trace_closest(scene: &SceneView, p: &RenderParams, origin: V3, dir: V3, live:
             }
         }
     }
-    h
+    Hits {
+        triangle: U::from_array(triangle),
+        t: F::from_array(t),
+        u: F::from_array(u),
+        v: F::from_array(v),
+        w: F::from_array(w),
+    }
 }
 
 /// What a vertex needs of the triangles hit (or picked) by the live lanes: vertices, stored
@@ -209,9 +219,9 @@ fn trace_paths(
     while alive.any() {
         let hits = trace_closest(scene, p, origin, dir, alive, bounce == 0);
         if bounce == 0 {
-            first = hits.triangle;
+            first = hits.triangle.to_array();
         }
-        let hit = U::from_array(hits.triangle).simd_ne(U::splat(NO_HIT)) & alive;
+        let hit = hits.triangle.simd_ne(U::splat(NO_HIT)) & alive;
         let escaped = alive & !hit;
         if v.has(FEATURE_ENVIRONMENT) & escaped.any() {
             radiance = V3::select(escaped, radiance + beta * V3::splat(xyz(p.environment)), radiance);
@@ -225,11 +235,11 @@ fn trace_paths(
         let last = !v.has(FEATURE_INDIRECT) | (bounce == v.max_bounces + 1);
         let (u_select, u_light) = if lights & !last { rng.next_2d() } else { (zero, zero) };
         let [ub1, ub2, u_roulette] = if last { [zero; 3] } else { rng.next_3d() };
-        let g = gather(scene, &hits.triangle, alive);
-        let t = F::from_array(hits.t);
+        let g = gather(scene, &hits.triangle.to_array(), alive);
+        let t = hits.t;
         let ng = g.tris.geometric_normal();
         let n = g.tris.n;
-        let (pos, error) = g.tris.hit_point(F::from_array(hits.u), F::from_array(hits.v), F::from_array(hits.w));
+        let (pos, error) = g.tris.hit_point(hits.u, hits.v, hits.w);
         let front = ng.dot(dir).simd_lt(zero);
 
         if v.has(FEATURE_EMITTERS) {
@@ -341,13 +351,20 @@ fn next_event(
     let from =
         if (behind & valid).any() { V3::select(behind, offset_ray_origin(pos, error, -nf), spawn) } else { spawn };
     let shadow_dir = target - from;
-    let mut unblocked = [false; LANES];
-    for (i, u) in unblocked.iter_mut().enumerate() {
-        if valid.test(i) {
-            *u = !query(scene, p.traversal, from.lane(i), shadow_dir.lane(i), 1.0 - SHADOW_EPSILON, true).hit.is_hit();
+    let unblocked = if brute_force(scene, valid) {
+        let t_max = F::splat(1.0 - SHADOW_EPSILON);
+        brute::cast(scene.triangles, from, shadow_dir, t_max, valid, true).triangle.simd_eq(U::splat(NO_HIT))
+    } else {
+        let mut unblocked = [false; LANES];
+        for (i, u) in unblocked.iter_mut().enumerate() {
+            if valid.test(i) {
+                *u = !query(scene, p.traversal, from.lane(i), shadow_dir.lane(i), 1.0 - SHADOW_EPSILON, true)
+                    .hit
+                    .is_hit();
+            }
         }
-    }
-    let unblocked = M::from_array(unblocked) & valid;
+        M::from_array(unblocked)
+    } & valid;
     let weight = power_heuristic(light_pdf, pdf_bsdf);
     let added = (beta * f * lg.emission).scale(cos_i.abs() * weight / light_pdf);
     *radiance = V3::select(unblocked, *radiance + added, *radiance);

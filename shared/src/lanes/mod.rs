@@ -20,10 +20,12 @@
 //!
 //! - `sampler`: the sampler's sets for sixteen samples (`rng::Sampler`, `sobol`).
 //! - `warp`: the camera, warps, hit points, ray offsets and the MIS weight.
+//! - `brute`: sixteen rays against every triangle of a small scene at once.
 //! - `integrator`: the path loop.
 use core::simd::cmp::SimdPartialOrd;
 use core::simd::{Mask, Select, Simd};
 
+pub mod brute;
 pub mod integrator;
 pub mod sampler;
 pub mod warp;
@@ -49,6 +51,16 @@ pub fn sqrt(x: F) -> F {
 #[inline(always)]
 pub fn max(a: F, b: F) -> F {
     a.simd_gt(b).select(a, b)
+}
+
+/// The hits of sixteen rays: triangle (`NO_HIT` for none), distance and the unnormalised
+/// barycentric weights, as rows.
+pub struct Hits {
+    pub triangle: U,
+    pub t: F,
+    pub u: F,
+    pub v: F,
+    pub w: F,
 }
 
 /// Sixteen 3-vectors, one per lane, as three rows.

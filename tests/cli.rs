@@ -320,12 +320,12 @@ fn cpu_instruction_sets_render_the_same_image() {
 
 /// The lane integrator (`shared::lanes`, sixteen samples of a pixel at once) renders what the
 /// scalar integrator renders (`KDTRACE_CPU_LANES=off`), bit for bit, on the scenes it covers:
-/// one and many emitters, a constant environment (the bunny's sky), direct light alone and paths long enough for
+/// one and many emitters, a constant environment (the bunny's sky), textures, direct light alone and paths long enough for
 /// Russian roulette and the sampler's independent sets, both samplers, sample counts that leave
 /// a group part-filled, and adaptive sampling's uneven counts. `render --json` says which ran.
 #[test]
 fn lane_integrator_renders_the_scalar_image() {
-    let cases: [(&str, &[&str]); 6] = [
+    let cases: [(&str, &[&str]); 7] = [
         ("scenes/cornell-box.obj", &["--spp", "21", "--bounces", "6"]),
         ("scenes/cornell-box.obj", &["--spp", "16", "--bounces", "0", "--sampler", "independent"]),
         ("scenes/bunny.toml", &["--spp", "9", "--bounces", "3", "--seed", "7"]),
@@ -334,6 +334,7 @@ fn lane_integrator_renders_the_scalar_image() {
             &["--spp", "35", "--bounces", "8", "--eye=0.4,1.0,3.9", "--target=2.6,1.0,0.5", "--fov=70"],
         ),
         ("tests/data/meshes/CornellBox-Original/CornellBox-Original.obj", &["--spp", "17", "--bounces", "6"]),
+        ("tests/data/cornell-textured/cornell-textured.toml", &["--spp", "18", "--bounces", "4"]),
         (
             "scenes/uneven-noise.obj",
             &[

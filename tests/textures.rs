@@ -348,10 +348,11 @@ fn vertex_normals_shade_smoothly_and_keep_energy() {
     let most = r.mean().iter().flat_map(|p| *p).fold(0f32, f32::max);
     assert!(most <= 1.0 + 1e-5, "a pixel reflects {most} of a white sky");
     assert!(r.mean().iter().filter(|p| p[0] > 0.5 && p[0] < 1.0).count() > 100);
-    // The normal image and the lit sphere agree on both devices.
+    // The normal image and the lit sphere agree on both devices; at 5 spp the CPU's specialised
+    // variant is the lane integrator (`shared::lanes`), which shades by the vertex normals too.
     let g = gpu::Gpu::lavapipe().unwrap();
     render_everywhere(&smooth, &RenderSettings { width: 16, height: 16, ..s }, &g);
-    render_everywhere(&smooth, &RenderSettings { width: 16, height: 16, spp: 2, ..furnace }, &g);
+    render_everywhere(&smooth, &RenderSettings { width: 16, height: 16, spp: 5, ..furnace }, &g);
 }
 
 /// The MTL keys map as the README says: map_Kd, map_d, map_Ke, map_Pr and map_Pm fill their slots

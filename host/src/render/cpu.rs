@@ -52,26 +52,41 @@ variants!(
     4072 4073 4074 4075 4076 4077 4078 4079 4088 4089 4090 4091 4092 4093 4094 16383
 );
 
-/// The variants the lane integrator covers (`shared::lanes::integrator::covers`): the first
-/// fifteen of `CANONICAL`, diffuse alone without the surface bits or the new lights, each
-/// through `shared::lanes::integrator::render_samples_for`, which renders sixteen samples of a
-/// pixel at once and the same image bit for bit.
+/// The variants the lane integrator covers (`shared::lanes::integrator::covers`): those of
+/// `CANONICAL` with diffuse alone and without the new lights, without and with the surface bits
+/// (`lane_index`), each through `shared::lanes::integrator::render_samples_for`, which renders
+/// sixteen samples of a pixel at once and the same image bit for bit.
 macro_rules! lane_variants {
     ($($bits:literal)*) => {
-        const LANE_CANONICAL: [u32; 15] = [$($bits),*];
-        static LANE_VARIANTS: [VariantFn; 15] = [$(lanes_render_samples_for::<$bits> as VariantFn),*];
+        #[cfg_attr(not(test), allow(dead_code))]
+        const LANE_CANONICAL: [u32; 30] = [$($bits),*];
+        static LANE_VARIANTS: [VariantFn; 30] = [$(lanes_render_samples_for::<$bits> as VariantFn),*];
         /// The same compiled for AVX-512 (`avx512::render_samples_lanes`).
         #[cfg(target_arch = "x86_64")]
-        static LANE_VARIANTS_AVX512: [VariantFn; 15] = [$(avx512::render_samples_lanes::<$bits> as VariantFn),*];
+        static LANE_VARIANTS_AVX512: [VariantFn; 30] = [$(avx512::render_samples_lanes::<$bits> as VariantFn),*];
     };
 }
-lane_variants!(8 9 10 11 12 13 14 15 24 25 26 27 28 29 30);
+lane_variants!(
+    8 9 10 11 12 13 14 15 24 25 26 27 28 29 30
+    3592 3593 3594 3595 3596 3597 3598 3599 3608 3609 3610 3611 3612 3613 3614
+);
+
+/// Where `CANONICAL[i]` sits in `LANE_CANONICAL`, if the lane integrator covers it: the first
+/// fifteen of each half of the table (the sixteenth has the new lights, the second 16 every
+/// material kind).
+fn lane_index(i: usize) -> Option<usize> {
+    match i {
+        0..15 => Some(i),
+        32..47 => Some(i - 17),
+        _ => None,
+    }
+}
 
 /// Whether the CPU renders feature bits `bits` with the lane integrator: where it covers
 /// `cpu_variant_bits(bits)`, unless `KDTRACE_CPU_LANES=off` asks for the scalar one (to compare
 /// the two).
 pub fn runs_lanes(bits: u32) -> bool {
-    variant_index(bits) < LANE_CANONICAL.len() && std::env::var("KDTRACE_CPU_LANES").as_deref() != Ok("off")
+    lane_index(variant_index(bits)).is_some() && std::env::var("KDTRACE_CPU_LANES").as_deref() != Ok("off")
 }
 
 /// The feature bits the CPU compiles a variant for, covering `bits`: the bits outside the
@@ -123,8 +138,7 @@ pub fn variant(bits: u32) -> VariantFn {
 
 /// `variant` compiled for `isa`; `Isa::Avx512` only where the CPU has it (`Isa::detect`).
 fn variant_for(bits: u32, isa: Isa) -> VariantFn {
-    if runs_lanes(bits) {
-        let i = variant_index(bits);
+    if let Some(i) = lane_index(variant_index(bits)).filter(|_| runs_lanes(bits)) {
         return match isa {
             Isa::Baseline => LANE_VARIANTS[i],
             #[cfg(target_arch = "x86_64")]
@@ -623,10 +637,10 @@ mod tests {
     #[test]
     fn the_lane_variants_are_those_the_lane_integrator_covers() {
         for (i, &c) in CANONICAL.iter().enumerate() {
-            let lanes = i < LANE_CANONICAL.len();
-            assert_eq!(lanes, shared::lanes::integrator::covers(c), "variant {i}: bits {c:#b}");
-            if lanes {
-                assert_eq!(LANE_CANONICAL[i], c);
+            let lanes = lane_index(i);
+            assert_eq!(lanes.is_some(), shared::lanes::integrator::covers(c), "variant {i}: bits {c:#b}");
+            if let Some(k) = lanes {
+                assert_eq!(LANE_CANONICAL[k], c);
             }
         }
     }

@@ -18,8 +18,9 @@ use super::warp::{
 };
 use super::{brute, sqrt, Hits, F, LANES, M, U, V3};
 use crate::features::{
-    Variant, FEATURE_DIFFUSE, FEATURE_EMITTERS, FEATURE_ENVIRONMENT, FEATURE_ENVIRONMENT_MAP, FEATURE_INDIRECT,
-    FEATURE_MANY_EMITTERS, FEATURE_MATERIALS, FEATURE_PUNCTUAL,
+    Variant, FEATURE_ALPHA_MASKS, FEATURE_DIFFUSE, FEATURE_EMITTERS, FEATURE_ENVIRONMENT, FEATURE_ENVIRONMENT_MAP,
+    FEATURE_INDIRECT, FEATURE_MANY_EMITTERS, FEATURE_MATERIALS, FEATURE_PUNCTUAL, FEATURE_TEXTURES,
+    FEATURE_VERTEX_NORMALS,
 };
 use crate::glam::{Vec3, Vec4};
 use crate::integrator::{RR_MAX_SURVIVAL, SHADOW_EPSILON};
@@ -30,16 +31,25 @@ use crate::raycast::query;
 use crate::rng::PixelSeeds;
 use crate::sampling::{remap_in_light, select_light, INV_PI};
 use crate::scene::SceneView;
+use crate::surface::{emission_at, looks_up_textures, resolve, shading_normal};
 use crate::vecmath::xyz;
 use core::simd::cmp::{SimdPartialEq, SimdPartialOrd};
 use core::simd::num::SimdFloat;
 use core::simd::Select;
 
 /// The features this integrator implements: Lambertian materials alone, emitting triangles
-/// (one or many), a constant environment, indirect light. Textures, alpha masks, vertex
-/// normals, other materials, environment maps and punctual lights go to the scalar integrator.
-pub const COVERED: u32 =
-    FEATURE_EMITTERS | FEATURE_MANY_EMITTERS | FEATURE_ENVIRONMENT | FEATURE_DIFFUSE | FEATURE_INDIRECT;
+/// (one or many), a constant environment, indirect light, textures, alpha masks and vertex
+/// normals. Other materials, environment maps and punctual lights go to the scalar integrator.
+/// Texture lookups, alpha tests and shading normals run lane by lane, through the scalar
+/// integrator's own functions (`surface`).
+pub const COVERED: u32 = FEATURE_EMITTERS
+    | FEATURE_MANY_EMITTERS
+    | FEATURE_ENVIRONMENT
+    | FEATURE_DIFFUSE
+    | FEATURE_INDIRECT
+    | FEATURE_TEXTURES
+    | FEATURE_ALPHA_MASKS
+    | FEATURE_VERTEX_NORMALS;
 
 /// Whether a variant with feature bits `features` runs here (`COVERED`, with diffuse the only
 /// material kind).
@@ -235,7 +245,25 @@ fn trace_paths(
         let last = !v.has(FEATURE_INDIRECT) | (bounce == v.max_bounces + 1);
         let (u_select, u_light) = if lights & !last { rng.next_2d() } else { (zero, zero) };
         let [ub1, ub2, u_roulette] = if last { [zero; 3] } else { rng.next_3d() };
-        let g = gather(scene, &hits.triangle.to_array(), alive);
+        let triangles = hits.triangle.to_array();
+        let mut g = gather(scene, &triangles, alive);
+        // The hit's barycentric weights (`surface::weights`) for textures and vertex normals.
+        let inv = F::splat(1.0) / (hits.u + hits.v + hits.w);
+        let b = (hits.u * inv, hits.v * inv, hits.w * inv);
+        if v.has(FEATURE_TEXTURES) & !scene.textures.is_empty() {
+            // `surface::resolve`, lane by lane: the texels at the hit replace the constants.
+            for (i, &tri) in triangles.iter().enumerate() {
+                if !alive.test(i) {
+                    continue;
+                }
+                let base = &scene.materials[scene.info[tri as usize].material as usize];
+                if looks_up_textures(scene, v, base) {
+                    let r = resolve(scene, v, base, tri, (b.0[i], b.1[i], b.2[i]));
+                    (g.albedo.x[i], g.albedo.y[i], g.albedo.z[i]) = (r.albedo.x, r.albedo.y, r.albedo.z);
+                    (g.emission.x[i], g.emission.y[i], g.emission.z[i]) = (r.emission.x, r.emission.y, r.emission.z);
+                }
+            }
+        }
         let t = hits.t;
         let ng = g.tris.geometric_normal();
         let n = g.tris.n;
@@ -269,10 +297,23 @@ fn trace_paths(
 
         let nf = V3::select(front, n, -n);
         let spawn = offset_ray_origin(pos, error, nf);
-        // Lambertian and without vertex normals: the shading normal is the flat one.
-        let ns = nf;
+        // `surface::shading_normal`, lane by lane where there are vertex normals; the flat
+        // normal otherwise.
+        let ns = if v.has(FEATURE_VERTEX_NORMALS) & !scene.attributes.is_empty() {
+            let wo = -dir.normalize();
+            let mut ns = [Vec3::ZERO; LANES];
+            for (i, n) in ns.iter_mut().enumerate() {
+                if alive.test(i) {
+                    *n = shading_normal(scene, v, triangles[i], (b.0[i], b.1[i], b.2[i]), nf.lane(i), wo.lane(i));
+                }
+            }
+            V3::from_lanes(&ns)
+        } else {
+            nf
+        };
+        let sides = Sides { check: v.has(FEATURE_VERTEX_NORMALS), nf, ns };
         if lights {
-            next_event(scene, p, many, &g, alive, pos, error, spawn, nf, ns, beta, u_select, u_light, &mut radiance);
+            next_event(scene, p, v, many, &g, alive, pos, error, spawn, sides, beta, u_select, u_light, &mut radiance);
         }
 
         // The Lambertian BSDF sample (`material::diffuse::sample`); no lobe to pick.
@@ -280,7 +321,7 @@ fn trace_paths(
         let (tb, bb) = orthonormal_basis(ns);
         let wi = tb.scale(local.x) + bb.scale(local.y) + ns.scale(local.z);
         let pdf = local.z * F::splat(INV_PI);
-        alive &= !pdf.simd_le(zero);
+        alive &= !pdf.simd_le(zero) & sides.consistent(wi);
         beta = V3::select(alive, beta * g.albedo, beta);
         bsdf_pdf = pdf;
         bounce += 1;
@@ -295,6 +336,28 @@ fn trace_paths(
     (radiance, first)
 }
 
+/// A vertex's flat normal `nf` (toward the side the ray came from) and shading normal `ns`.
+#[derive(Clone, Copy)]
+struct Sides {
+    /// Whether the variant has vertex normals, so that the two may differ.
+    check: bool,
+    nf: V3,
+    ns: V3,
+}
+
+impl Sides {
+    /// `surface::consistent`, lane by lane: whether `wi` lies on the same side of both normals.
+    #[inline(always)]
+    fn consistent(&self, wi: V3) -> M {
+        let zero = F::splat(0.0);
+        if self.check {
+            !(self.nf.dot(wi).simd_gt(zero) ^ self.ns.dot(wi).simd_gt(zero))
+        } else {
+            M::splat(true)
+        }
+    }
+}
+
 /// Next-event estimation toward emitting triangles (`shade_vertex`'s light sample) for the
 /// live lanes: a light picked per lane, a point on it, the shadow rays one by one, the
 /// unblocked lanes' MIS-weighted contributions added to `radiance`.
@@ -303,20 +366,21 @@ fn trace_paths(
 fn next_event(
     scene: &SceneView,
     p: &RenderParams,
+    v: Variant,
     many: bool,
     g: &Gathered,
     alive: M,
     pos: V3,
     error: F,
     spawn: V3,
-    nf: V3,
-    ns: V3,
+    sides: Sides,
     beta: V3,
     u_select: F,
     u_light: F,
     radiance: &mut V3,
 ) {
     let zero = F::splat(0.0);
+    let (nf, ns) = (sides.nf, sides.ns);
     let mut triangle = [0u32; LANES];
     let (mut pmf, mut area, mut u1) = ([0.0f32; LANES], [1.0f32; LANES], u_select.to_array());
     for i in 0..LANES {
@@ -329,8 +393,18 @@ fn next_event(
             (triangle[i], pmf[i], area[i]) = (light.triangle, light.pmf, light.area);
         }
     }
-    let lg = gather(scene, &triangle, alive);
+    let mut lg = gather(scene, &triangle, alive);
     let (b0, b1, b2) = uniform_triangle(F::from_array(u1), u_light);
+    if v.has(FEATURE_TEXTURES) & !scene.textures.is_empty() {
+        // `surface::emission_at`: an emission texture at the point picked.
+        for i in 0..LANES {
+            if alive.test(i) {
+                let m = &scene.materials[scene.info[triangle[i] as usize].material as usize];
+                let e = emission_at(scene, v, m, triangle[i], (b0[i], b1[i], b2[i]));
+                (lg.emission.x[i], lg.emission.y[i], lg.emission.z[i]) = (e.x, e.y, e.z);
+            }
+        }
+    }
     let (q, q_error) = lg.tris.interpolate(b0, b1, b2);
     let nl = lg.tris.n;
     let to_light = q - pos;
@@ -341,7 +415,7 @@ fn next_event(
     let cos_i = ns.dot(wi);
     let pdf_bsdf = cos_i.simd_gt(zero).select(cos_i * F::splat(INV_PI), zero);
     let f = g.albedo.scale(F::splat(INV_PI));
-    let valid = alive & cos_l.simd_gt(zero) & pdf_bsdf.simd_gt(zero) & dist2.simd_gt(zero);
+    let valid = alive & cos_l.simd_gt(zero) & pdf_bsdf.simd_gt(zero) & dist2.simd_gt(zero) & sides.consistent(wi);
     if !valid.any() {
         return;
     }

@@ -11,9 +11,9 @@
 //!
 //! Each lane performs the operations `RayShear::new` and `RayShear::intersect` perform for its
 //! ray, in their order, and keeps the closest hit in (0, t_max) with the lowest triangle id on a
-//! tie, testing the triangles in id order: what every traversal returns (they all equal brute
-//! force bit for bit, `kdtree`, `wide_bvh`). The axes of a ray's shear differ from lane to lane,
-//! so a triangle's coordinates are picked per lane by masks.
+//! tie, testing the triangles in id order: what the wide BVH's traversal returns (`wide_bvh`,
+//! equal to brute force bit for bit). The axes of a ray's shear differ from lane to lane, so a
+//! triangle's coordinates are picked per lane by masks.
 #[cfg(test)]
 use super::LANES;
 use super::{Hits, F, M, U, V3};

@@ -4,13 +4,16 @@
 //! admits, in its order; the sampler's sets stay in step because every live path is at the same
 //! vertex.
 //!
-//! In a small scene the sixteen rays of a step are cast together against every triangle
-//! (`brute`). Elsewhere the camera rays of a full group are traced as one packet through the
-//! wide BVH (`wide_packet`, which finds each ray's own hit): they leave one pixel in nearly one
-//! direction. The rays after them are traced one by one: from the first vertex on, a pixel's
-//! rays are as incoherent as any, and packets of them were slower (BENCHMARKS.md, "Packets of
-//! sixteen rays"). Every way finds the hit brute force finds, so the image does not depend on
-//! which ran.
+//! With the wide BVH (the CPU path's traversal), the sixteen rays of a step in a small scene
+//! are cast together against every triangle (`brute`); elsewhere the camera rays of a full
+//! group are traced as one packet (`wide_packet`, which finds each ray's own hit): they leave
+//! one pixel in nearly one direction. The rays after them are traced one by one: from the first
+//! vertex on, a pixel's rays are as incoherent as any, and packets of them were slower
+//! (BENCHMARKS.md, "Packets of sixteen rays"). All three find the hit brute force finds, bit
+//! for bit, so the image does not depend on which ran. A k-d traversal, asked for with
+//! `--traversal`, traces every ray one by one: at extreme coordinates it may miss a hit within
+//! rounding of a ray's origin that brute force finds (`tests/stress_renders.rs`), and the CPU
+//! renders with it to compare with the GPU, which traverses the k-d tree.
 use super::sampler::LaneSampler;
 use super::warp::{
     cosine_hemisphere, offset_ray_origin, orthonormal_basis, power_heuristic, primary_direction, uniform_triangle,
@@ -109,19 +112,23 @@ pub fn render_samples_for<const FEATURES: u32>(
     *sum_sq = acc_sq;
 }
 
-/// Whether the live lanes' rays are cast by brute force (`brute`): in a scene without alpha
-/// masks whose triangles are few for the rays (`brute::TRIANGLES_PER_RAY`).
+/// Whether the live lanes' rays are cast by brute force (`brute`): in place of the wide BVH
+/// (which finds the same hits bit for bit; a k-d traversal asked for by `--traversal` runs as
+/// asked), in a scene without alpha masks whose triangles are few for the rays
+/// (`brute::TRIANGLES_PER_RAY`).
 #[inline(always)]
-fn brute_force(scene: &SceneView, live: M) -> bool {
+fn brute_force(scene: &SceneView, p: &RenderParams, live: M) -> bool {
     let rays = live.to_bitmask().count_ones() as usize;
-    (scene.triangles.len() <= rays * brute::TRIANGLES_PER_RAY) & !scene.alpha_masks
+    (p.traversal == TRAVERSAL_WIDE_BVH)
+        & (scene.triangles.len() <= rays * brute::TRIANGLES_PER_RAY)
+        & !scene.alpha_masks
 }
 
 /// The closest hits of the live lanes' rays: by brute force in a small scene, else one by one
 /// by the chosen traversal, a camera ray group of sixteen as one packet.
 #[inline(always)]
 fn trace_closest(scene: &SceneView, p: &RenderParams, origin: V3, dir: V3, live: M, packet: bool) -> Hits {
-    if brute_force(scene, live) {
+    if brute_force(scene, p, live) {
         return brute::cast(scene.triangles, origin, dir, F::splat(f32::MAX), live, false);
     }
     let (mut triangle, mut t, mut u, mut v, mut w) =
@@ -425,7 +432,7 @@ fn next_event(
     let from =
         if (behind & valid).any() { V3::select(behind, offset_ray_origin(pos, error, -nf), spawn) } else { spawn };
     let shadow_dir = target - from;
-    let unblocked = if brute_force(scene, valid) {
+    let unblocked = if brute_force(scene, p, valid) {
         let t_max = F::splat(1.0 - SHADOW_EPSILON);
         brute::cast(scene.triangles, from, shadow_dir, t_max, valid, true).triangle.simd_eq(U::splat(NO_HIT))
     } else {

@@ -14,9 +14,9 @@
 //! fused), so the image is the scalar integrator's bit for bit: the tests compare every lane
 //! function with its scalar original, and whole renders with the scalar integrator's
 //! (`tests/cli.rs`). The scalar integrator stays the reference: the GPU, the pixel replay and
-//! every feature this one does not cover run it. What this one covers is `covers`:
-//! Lambertian materials, emitting triangles and a constant environment, without textures,
-//! alpha masks or vertex normals, the radiance image.
+//! every feature this one does not cover run it. What this one covers is
+//! `integrator::covers`: Lambertian materials (with textures, alpha masks and vertex normals or
+//! without), emitting triangles and a constant environment, the radiance image.
 //!
 //! - `sampler`: the sampler's sets for sixteen samples (`rng::Sampler`, `sobol`).
 //! - `warp`: the camera, warps, hit points, ray offsets and the MIS weight.

@@ -23,6 +23,16 @@ fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
+/// Whether no pixel of `image` has any light.
+fn black(image: &[[f32; 3]]) -> bool {
+    !image.iter().any(|p| p.iter().any(|&c| c > 0.0))
+}
+
+/// How many pixels of `a` and `b` differ in any bit.
+fn pixels_differing(a: &[[f32; 3]], b: &[[f32; 3]]) -> usize {
+    a.iter().zip(b).filter(|(a, b)| a.map(f32::to_bits) != b.map(f32::to_bits)).count()
+}
+
 #[test]
 fn renders_the_default_scene_on_both_devices_with_json() {
     for device in ["cpu", "gpu"] {
@@ -311,9 +321,8 @@ fn cpu_instruction_sets_render_the_same_image() {
             let (_, _, px) = kdtrace::image::io::read_exr(&out).unwrap();
             images.push(px);
         }
-        assert!(images[0].iter().any(|p| p.iter().any(|&c| c > 0.0)), "{scene}: a black image");
-        let differ =
-            images[0].iter().zip(&images[1]).filter(|(a, b)| a.map(f32::to_bits) != b.map(f32::to_bits)).count();
+        assert!(!black(&images[0]), "{scene}: a black image");
+        let differ = pixels_differing(&images[0], &images[1]);
         assert_eq!(differ, 0, "{scene}: {differ} pixels differ between the instruction sets");
     }
 }
@@ -367,9 +376,8 @@ fn lane_integrator_renders_the_scalar_image() {
             let (_, _, px) = kdtrace::image::io::read_exr(&out).unwrap();
             images.push(px);
         }
-        assert!(images[0].iter().any(|p| p.iter().any(|&c| c > 0.0)), "{scene} {extra:?}: a black image");
-        let differ =
-            images[0].iter().zip(&images[1]).filter(|(a, b)| a.map(f32::to_bits) != b.map(f32::to_bits)).count();
+        assert!(!black(&images[0]), "{scene} {extra:?}: a black image");
+        let differ = pixels_differing(&images[0], &images[1]);
         assert_eq!(differ, 0, "{scene} {extra:?}: {differ} pixels differ between the lane and scalar integrators");
     }
     // A scene it does not cover (glass) and the generic code run the scalar integrator.

@@ -82,11 +82,16 @@ fn lane_index(i: usize) -> Option<usize> {
     }
 }
 
-/// Whether the CPU renders feature bits `bits` with the lane integrator: where it covers
-/// `cpu_variant_bits(bits)`, unless `KDTRACE_CPU_LANES=off` asks for the scalar one (to compare
-/// the two).
+/// Where the CPU's variant for feature bits `bits` sits in `LANE_VARIANTS`, if it renders them
+/// with the lane integrator: where that covers `cpu_variant_bits(bits)`, unless
+/// `KDTRACE_CPU_LANES=off` asks for the scalar one (to compare the two).
+fn lane_variant_index(bits: u32) -> Option<usize> {
+    lane_index(variant_index(bits)).filter(|_| std::env::var("KDTRACE_CPU_LANES").as_deref() != Ok("off"))
+}
+
+/// Whether the CPU renders feature bits `bits` with the lane integrator (`lane_variant_index`).
 pub fn runs_lanes(bits: u32) -> bool {
-    lane_index(variant_index(bits)).is_some() && std::env::var("KDTRACE_CPU_LANES").as_deref() != Ok("off")
+    lane_variant_index(bits).is_some()
 }
 
 /// The feature bits the CPU compiles a variant for, covering `bits`: the bits outside the
@@ -138,7 +143,7 @@ pub fn variant(bits: u32) -> VariantFn {
 
 /// `variant` compiled for `isa`; `Isa::Avx512` only where the CPU has it (`Isa::detect`).
 fn variant_for(bits: u32, isa: Isa) -> VariantFn {
-    if let Some(i) = lane_index(variant_index(bits)).filter(|_| runs_lanes(bits)) {
+    if let Some(i) = lane_variant_index(bits) {
         return match isa {
             Isa::Baseline => LANE_VARIANTS[i],
             #[cfg(target_arch = "x86_64")]
@@ -230,79 +235,49 @@ mod avx512 {
             && std::arch::is_x86_feature_detected!("avx512cd")
     }
 
-    /// `render_samples_for::<F>` in a function compiled for AVX-512: the integrator, the
-    /// traversal and the sampler are inlined into it (`#[inline(always)]` down the hot path),
-    /// so they are compiled for AVX-512 too.
-    #[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq,avx512cd")]
-    #[allow(clippy::too_many_arguments)]
-    fn render_samples_avx512<const F: u32>(
-        scene: &SceneView,
-        p: &RenderParams,
-        x: u32,
-        y: u32,
-        start: u32,
-        count: u32,
-        sum: &mut Vec4,
-        sum_sq: &mut Vec4,
-        primary: &mut u32,
-    ) {
-        render_samples_for::<F>(scene, p, x, y, start, count, sum, sum_sq, primary)
-    }
+    /// `$integrator::<F>` in a function compiled for AVX-512 (`$compiled`), and `$name`, a
+    /// `VariantFn` for it. The integrator, the traversal and the sampler are inlined into it
+    /// (`#[inline(always)]` down the hot path), so they are compiled for AVX-512 too. `$name` is
+    /// only in the AVX-512 tables, which `variant_for` hands out only for `Isa::Avx512`, which
+    /// `Isa::detect` returns only where `available()`.
+    macro_rules! avx512_variant {
+        ($name:ident, $compiled:ident, $integrator:ident) => {
+            #[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq,avx512cd")]
+            #[allow(clippy::too_many_arguments)]
+            fn $compiled<const F: u32>(
+                scene: &SceneView,
+                p: &RenderParams,
+                x: u32,
+                y: u32,
+                start: u32,
+                count: u32,
+                sum: &mut Vec4,
+                sum_sq: &mut Vec4,
+                primary: &mut u32,
+            ) {
+                $integrator::<F>(scene, p, x, y, start, count, sum, sum_sq, primary)
+            }
 
-    /// A `VariantFn` for `render_samples_avx512::<F>`; only in `VARIANTS_AVX512`, which
-    /// `variant_for` hands out only for `Isa::Avx512`, which `Isa::detect` returns only where
-    /// `available()`.
-    #[allow(clippy::too_many_arguments)]
-    pub fn render_samples<const F: u32>(
-        scene: &SceneView,
-        p: &RenderParams,
-        x: u32,
-        y: u32,
-        start: u32,
-        count: u32,
-        sum: &mut Vec4,
-        sum_sq: &mut Vec4,
-        primary: &mut u32,
-    ) {
-        // SAFETY: see above: the CPU has every feature the function is compiled for.
-        unsafe { render_samples_avx512::<F>(scene, p, x, y, start, count, sum, sum_sq, primary) }
+            #[allow(clippy::too_many_arguments)]
+            pub fn $name<const F: u32>(
+                scene: &SceneView,
+                p: &RenderParams,
+                x: u32,
+                y: u32,
+                start: u32,
+                count: u32,
+                sum: &mut Vec4,
+                sum_sq: &mut Vec4,
+                primary: &mut u32,
+            ) {
+                // SAFETY: see above: the CPU has every feature the function is compiled for.
+                unsafe { $compiled::<F>(scene, p, x, y, start, count, sum, sum_sq, primary) }
+            }
+        };
     }
-
-    /// `shared::lanes::integrator::render_samples_for::<F>` compiled for AVX-512, as
-    /// `render_samples_avx512`.
-    #[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq,avx512cd")]
-    #[allow(clippy::too_many_arguments)]
-    fn render_samples_lanes_avx512<const F: u32>(
-        scene: &SceneView,
-        p: &RenderParams,
-        x: u32,
-        y: u32,
-        start: u32,
-        count: u32,
-        sum: &mut Vec4,
-        sum_sq: &mut Vec4,
-        primary: &mut u32,
-    ) {
-        lanes_render_samples_for::<F>(scene, p, x, y, start, count, sum, sum_sq, primary)
-    }
-
-    /// A `VariantFn` for `render_samples_lanes_avx512::<F>`; only in `LANE_VARIANTS_AVX512`,
-    /// handed out as `VARIANTS_AVX512` is.
-    #[allow(clippy::too_many_arguments)]
-    pub fn render_samples_lanes<const F: u32>(
-        scene: &SceneView,
-        p: &RenderParams,
-        x: u32,
-        y: u32,
-        start: u32,
-        count: u32,
-        sum: &mut Vec4,
-        sum_sq: &mut Vec4,
-        primary: &mut u32,
-    ) {
-        // SAFETY: as for `render_samples`.
-        unsafe { render_samples_lanes_avx512::<F>(scene, p, x, y, start, count, sum, sum_sq, primary) }
-    }
+    // The scalar integrator (`VARIANTS_AVX512`) and the lane integrator (`LANE_VARIANTS_AVX512`).
+    avx512_variant!(render_samples, render_samples_avx512, render_samples_for);
+    avx512_variant!(render_samples_lanes, render_samples_lanes_avx512, lanes_render_samples_for);
 
     /// `shared::raycast::cast_ray` compiled for AVX-512 (the wide BVH's traversal is inlined).
     #[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq,avx512cd")]

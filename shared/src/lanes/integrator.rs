@@ -17,7 +17,7 @@
 use super::sampler::LaneSampler;
 use super::warp::{
     cosine_hemisphere, offset_ray_origin, orthonormal_basis, power_heuristic, primary_direction, uniform_triangle,
-    Triangles,
+    weights, Triangles,
 };
 use super::{brute, sqrt, Hits, F, LANES, M, U, V3};
 use crate::features::{
@@ -159,11 +159,13 @@ fn trace_closest(scene: &SceneView, p: &RenderParams, origin: V3, dir: V3, live:
 }
 
 /// What a vertex needs of the triangles hit (or picked) by the live lanes: vertices, stored
-/// normals, material albedo and emission, light-table entries.
+/// normals, material albedo and emission (the material's constants; its index for texture
+/// lookups), light-table entries.
 struct Gathered {
     tris: Triangles,
     albedo: V3,
     emission: V3,
+    material: [u32; LANES],
     light: [u32; LANES],
 }
 
@@ -172,7 +174,7 @@ fn gather(scene: &SceneView, triangle: &[u32; LANES], live: M) -> Gathered {
     // Rows of the sixteen lanes' values: v0, v1, v2 (x, y, z), the stored normal, albedo and
     // emission.
     let mut rows = [[0.0f32; LANES]; 18];
-    let mut light = [NO_LIGHT; LANES];
+    let (mut material, mut light) = ([0; LANES], [NO_LIGHT; LANES]);
     for i in 0..LANES {
         if live.test(i) {
             let t = &scene.triangles[triangle[i] as usize];
@@ -201,11 +203,17 @@ fn gather(scene: &SceneView, triangle: &[u32; LANES], live: M) -> Gathered {
             for (row, value) in rows.iter_mut().zip(values) {
                 row[i] = value;
             }
-            light[i] = info.light;
+            (material[i], light[i]) = (info.material, info.light);
         }
     }
     let v = |k: usize| V3::new(F::from_array(rows[k]), F::from_array(rows[k + 1]), F::from_array(rows[k + 2]));
-    Gathered { tris: Triangles { v0: v(0), v1: v(3), v2: v(6), n: v(9) }, albedo: v(12), emission: v(15), light }
+    Gathered {
+        tris: Triangles { v0: v(0), v1: v(3), v2: v(6), n: v(9) },
+        albedo: v(12),
+        emission: v(15),
+        material,
+        light,
+    }
 }
 
 /// `integrator::trace_path` for the live lanes' samples of pixel (px, py): their radiance, and
@@ -254,16 +262,15 @@ fn trace_paths(
         let [ub1, ub2, u_roulette] = if last { [zero; 3] } else { rng.next_3d() };
         let triangles = hits.triangle.to_array();
         let mut g = gather(scene, &triangles, alive);
-        // The hit's barycentric weights (`surface::weights`) for textures and vertex normals.
-        let inv = F::splat(1.0) / (hits.u + hits.v + hits.w);
-        let b = (hits.u * inv, hits.v * inv, hits.w * inv);
+        // The hit's barycentric weights, for its point, textures and vertex normals.
+        let b = weights(hits.u, hits.v, hits.w);
         if v.has(FEATURE_TEXTURES) & !scene.textures.is_empty() {
             // `surface::resolve`, lane by lane: the texels at the hit replace the constants.
             for (i, &tri) in triangles.iter().enumerate() {
                 if !alive.test(i) {
                     continue;
                 }
-                let base = &scene.materials[scene.info[tri as usize].material as usize];
+                let base = &scene.materials[g.material[i] as usize];
                 if looks_up_textures(scene, v, base) {
                     let r = resolve(scene, v, base, tri, (b.0[i], b.1[i], b.2[i]));
                     (g.albedo.x[i], g.albedo.y[i], g.albedo.z[i]) = (r.albedo.x, r.albedo.y, r.albedo.z);
@@ -274,7 +281,7 @@ fn trace_paths(
         let t = hits.t;
         let ng = g.tris.geometric_normal();
         let n = g.tris.n;
-        let (pos, error) = g.tris.hit_point(hits.u, hits.v, hits.w);
+        let (pos, error) = g.tris.interpolate(b.0, b.1, b.2);
         let front = ng.dot(dir).simd_lt(zero);
 
         if v.has(FEATURE_EMITTERS) {
@@ -406,7 +413,7 @@ fn next_event(
         // `surface::emission_at`: an emission texture at the point picked.
         for i in 0..LANES {
             if alive.test(i) {
-                let m = &scene.materials[scene.info[triangle[i] as usize].material as usize];
+                let m = &scene.materials[lg.material[i] as usize];
                 let e = emission_at(scene, v, m, triangle[i], (b0[i], b1[i], b2[i]));
                 (lg.emission.x[i], lg.emission.y[i], lg.emission.z[i]) = (e.x, e.y, e.z);
             }

@@ -151,13 +151,14 @@ impl Triangles {
         let largest = sz.simd_gt(largest).select(sz, largest);
         (a + b + c, largest * F::splat(gamma(7)))
     }
+}
 
-    /// `triangle::hit_point` from a hit's unnormalised weights.
-    #[inline(always)]
-    pub fn hit_point(&self, u: F, v: F, w: F) -> (V3, F) {
-        let inv = F::splat(1.0) / (u + v + w);
-        self.interpolate(u * inv, v * inv, w * inv)
-    }
+/// `surface::weights`: a hit's barycentric weights from its unnormalised ones, the weights
+/// `triangle::hit_point` interpolates the hit point with.
+#[inline(always)]
+pub fn weights(u: F, v: F, w: F) -> (F, F, F) {
+    let inv = F::splat(1.0) / (u + v + w);
+    (u * inv, v * inv, w * inv)
 }
 
 #[cfg(test)]
@@ -248,7 +249,8 @@ mod tests {
             let sng: [Vec3; LANES] = core::array::from_fn(|i| crate::triangle::geometric_normal(&scalar[i]));
             same(ng.y, sng.map(|v| v.y), "geometric normal y");
             let (u, w, t) = (values(k, 0.0, 2.0), values(k + 1000, 0.0, 2.0), values(k + 2000, 0.0, 2.0));
-            let (p, err) = tris.hit_point(u, w, t);
+            let b = weights(u, w, t);
+            let (p, err) = tris.interpolate(b.0, b.1, b.2);
             let n = ng.normalize();
             let n = if k % 3 == 0 { -n } else { n };
             let spawn = offset_ray_origin(p, err, n);

@@ -107,7 +107,7 @@ fn a_write_that_fails_leaves_the_previous_file_untouched() {
 fn an_image_beyond_memory_is_refused_with_the_size_it_needs() {
     let d = dir("memory");
     let out = d.join("huge.png");
-    // 16384² needs about 16 GiB of buffers; a 3 GiB address-space limit cannot hold them. Refused
+    // 16384² needs about 24 GiB of buffers; a 3 GiB address-space limit cannot hold them. Refused
     // before the buffers exist, not ended by a signal part-way.
     let script = format!(
         "ulimit -v 3000000; exec {:?} render {:?} --out {:?} --spp 1 --width 16384 --height 16384",

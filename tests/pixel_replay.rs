@@ -197,7 +197,8 @@ fn later_samples_replay_what_the_renderer_adds() {
             for x in (0..SIZE).step_by(3) {
                 let r = debug::replay(c, &s, x, y, sample).unwrap();
                 let (mut sum, mut sum_sq, mut primary) = (Vec4::ZERO, Vec4::ZERO, NO_HIT);
-                variant(&view, &params, x, y, sample, 1, &mut sum, &mut sum_sq, &mut primary);
+                let (sums, sums_sq) = (core::slice::from_mut(&mut sum), core::slice::from_mut(&mut sum_sq));
+                variant(&view, &params, x, y, sample, 1, 1, sums, sums_sq, &mut primary);
                 assert_eq!(bits(r.radiance), bits(sum.truncate().to_array()), "({x}, {y}) sample {sample}");
                 assert_eq!(r.zeroed, sum.w == 1.0);
                 let generic = Variant::new(FEATURES_ALL, &params);

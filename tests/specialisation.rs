@@ -331,7 +331,7 @@ fn leaving_out_a_used_feature_changes_the_image() {
         for y in 0..s.height {
             for x in 0..s.width {
                 let i = (y * s.width + x) as usize;
-                f(&view, &params, x, y, 0, s.spp, &mut sum[i], &mut sum_sq[i], &mut primary[i]);
+                f(&view, &params, x, y, 0, s.spp, s.spp, &mut sum[i..=i], &mut sum_sq[i..=i], &mut primary[i]);
             }
         }
         assert_ne!(sum, full.sum, "leaving out feature bit {bit} changed nothing");

@@ -571,3 +571,33 @@ pub fn render_samples_for<const F: u32>(
 ) {
     render_samples(scene, p, Variant::new(F, p), x, y, start, count, sum, sum_sq, primary);
 }
+
+/// `render_samples_for::<F>` with the sums cut into runs of `per` samples: sample `start + i` is
+/// added to `sum[i / per]` and `sum_sq[i / per]`, each run in sample order, so each run's sums are
+/// the ones a call for that run alone adds. The CPU renders two blocks of samples in one call
+/// this way (`lanes::integrator`, whose sixteen lanes two blocks of eight fill) and keeps each
+/// block's sums apart. `per` 0 counts as 1.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub fn render_runs_for<const F: u32>(
+    scene: &SceneView,
+    p: &RenderParams,
+    x: u32,
+    y: u32,
+    start: u32,
+    count: u32,
+    per: u32,
+    sum: &mut [Vec4],
+    sum_sq: &mut [Vec4],
+    primary: &mut u32,
+) {
+    let (end, per) = (start + count, per.max(1));
+    let mut s = start;
+    let mut run = 0;
+    while s < end {
+        let n = (end - s).min(per);
+        render_samples_for::<F>(scene, p, x, y, s, n, &mut sum[run], &mut sum_sq[run], primary);
+        s += n;
+        run += 1;
+    }
+}

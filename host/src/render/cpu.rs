@@ -1,7 +1,7 @@
 //! The CPU reference renderer: rayon over rows, each pixel through `shared::integrator`, the same
 //! function the GPU kernel runs, monomorphised for the scene's feature set (`variant`).
 //! Non-finite samples are zeroed and logged with their pixel.
-use crate::render::blocks::{Node, Sums};
+use crate::render::blocks::{Node, Sums, BLOCK_SAMPLES};
 use crate::render::progressive::{Blocks, Progressive, RunningSums};
 use crate::render::{adaptive, Compiled, Progress, Rendered};
 use crate::settings::RenderSettings;
@@ -13,8 +13,8 @@ use shared::features::{
     FEATURE_VERTEX_NORMALS,
 };
 use shared::glam::Vec4;
-use shared::integrator::render_samples_for;
-use shared::lanes::integrator::render_samples_for as lanes_render_samples_for;
+use shared::integrator::render_runs_for;
+use shared::lanes::integrator::render_runs_for as lanes_render_runs_for;
 use shared::layout::{RayQuery, RayResult, RenderParams, NO_HIT};
 use shared::raycast::cast_ray;
 use shared::scene::SceneView;
@@ -28,18 +28,20 @@ const PASS_SECONDS: f64 = 0.25;
 /// is checked often.
 const ADAPTIVE_PASS_SAMPLES: u32 = 16;
 
-/// A monomorphised variant of the integrator: `render_samples_for::<F>`.
-pub type VariantFn = fn(&SceneView, &RenderParams, u32, u32, u32, u32, &mut Vec4, &mut Vec4, &mut u32);
+/// A monomorphised variant of the integrator: `render_runs_for::<F>` (scene, parameters, pixel
+/// x and y, the first sample and the count, the samples a run, each run's sums and squared sums,
+/// the primary hit).
+pub type VariantFn = fn(&SceneView, &RenderParams, u32, u32, u32, u32, u32, &mut [Vec4], &mut [Vec4], &mut u32);
 
 /// The compiled variants: every combination of the feature bits outside the materials and the
 /// surface bits, each for diffuse alone and for every material kind, and all of those once
 /// without and once with the surface bits (`cpu_variant_bits`): `VARIANTS[i]` is
-/// `render_samples_for::<{ CANONICAL[i] }>`.
+/// `render_runs_for::<{ CANONICAL[i] }>`.
 macro_rules! variants {
     ($($bits:literal)*) => {
         #[cfg_attr(not(test), allow(dead_code))]
         const CANONICAL: [u32; 64] = [$($bits),*];
-        static VARIANTS: [VariantFn; 64] = [$(render_samples_for::<$bits> as VariantFn),*];
+        static VARIANTS: [VariantFn; 64] = [$(render_runs_for::<$bits> as VariantFn),*];
         /// The same variants compiled for AVX-512 (`avx512::render_samples`).
         #[cfg(target_arch = "x86_64")]
         static VARIANTS_AVX512: [VariantFn; 64] = [$(avx512::render_samples::<$bits> as VariantFn),*];
@@ -54,13 +56,13 @@ variants!(
 
 /// The variants the lane integrator covers (`shared::lanes::integrator::covers`): those of
 /// `CANONICAL` with diffuse alone and without the new lights, without and with the surface bits
-/// (`lane_index`), each through `shared::lanes::integrator::render_samples_for`, which renders
+/// (`lane_index`), each through `shared::lanes::integrator::render_runs_for`, which renders
 /// sixteen samples of a pixel at once and the same image bit for bit.
 macro_rules! lane_variants {
     ($($bits:literal)*) => {
         #[cfg_attr(not(test), allow(dead_code))]
         const LANE_CANONICAL: [u32; 30] = [$($bits),*];
-        static LANE_VARIANTS: [VariantFn; 30] = [$(lanes_render_samples_for::<$bits> as VariantFn),*];
+        static LANE_VARIANTS: [VariantFn; 30] = [$(lanes_render_runs_for::<$bits> as VariantFn),*];
         /// The same compiled for AVX-512 (`avx512::render_samples_lanes`).
         #[cfg(target_arch = "x86_64")]
         static LANE_VARIANTS_AVX512: [VariantFn; 30] = [$(avx512::render_samples_lanes::<$bits> as VariantFn),*];
@@ -251,11 +253,12 @@ mod avx512 {
                 y: u32,
                 start: u32,
                 count: u32,
-                sum: &mut Vec4,
-                sum_sq: &mut Vec4,
+                per: u32,
+                sum: &mut [Vec4],
+                sum_sq: &mut [Vec4],
                 primary: &mut u32,
             ) {
-                $integrator::<F>(scene, p, x, y, start, count, sum, sum_sq, primary)
+                $integrator::<F>(scene, p, x, y, start, count, per, sum, sum_sq, primary)
             }
 
             #[allow(clippy::too_many_arguments)]
@@ -266,18 +269,19 @@ mod avx512 {
                 y: u32,
                 start: u32,
                 count: u32,
-                sum: &mut Vec4,
-                sum_sq: &mut Vec4,
+                per: u32,
+                sum: &mut [Vec4],
+                sum_sq: &mut [Vec4],
                 primary: &mut u32,
             ) {
                 // SAFETY: see above: the CPU has every feature the function is compiled for.
-                unsafe { $compiled::<F>(scene, p, x, y, start, count, sum, sum_sq, primary) }
+                unsafe { $compiled::<F>(scene, p, x, y, start, count, per, sum, sum_sq, primary) }
             }
         };
     }
     // The scalar integrator (`VARIANTS_AVX512`) and the lane integrator (`LANE_VARIANTS_AVX512`).
-    avx512_variant!(render_samples, render_samples_avx512, render_samples_for);
-    avx512_variant!(render_samples_lanes, render_samples_lanes_avx512, lanes_render_samples_for);
+    avx512_variant!(render_samples, render_samples_avx512, render_runs_for);
+    avx512_variant!(render_samples_lanes, render_samples_lanes_avx512, lanes_render_runs_for);
 
     /// `shared::raycast::cast_ray` compiled for AVX-512 (the wide BVH's traversal is inlined).
     #[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq,avx512cd")]
@@ -384,6 +388,9 @@ pub(crate) struct CpuSums<'a> {
     sum: Vec<Vec4>,
     sum_sq: Vec<Vec4>,
     primary: Vec<u32>,
+    /// The second block's sums and squared sums of a pass that renders two blocks at once
+    /// (`RunningSums::add_two_blocks`); empty until one does.
+    next: (Vec<Vec4>, Vec<Vec4>),
 }
 
 impl<'a> CpuSums<'a> {
@@ -401,35 +408,64 @@ impl<'a> CpuSums<'a> {
             sum: vec![Vec4::ZERO; n],
             sum_sq: vec![Vec4::ZERO; n],
             primary: vec![NO_HIT; n],
+            next: (Vec::new(), Vec::new()),
         })
     }
 
     /// Adds samples `[start, start + count)` to every pixel's running sums, calling `row_done`
-    /// with `count` after each row (from rayon's threads).
-    fn add_rows(&mut self, start: u32, count: u32, row_done: &(dyn Fn(u32) + Sync)) -> Result<()> {
+    /// with `count` after each row (from rayon's threads). With `two`, `count` is two blocks
+    /// from a block boundary and the second block's samples go to the second block's sums
+    /// (`next`, zeroed first), so the lane integrator fills its sixteen lanes from both.
+    fn add_rows(&mut self, start: u32, count: u32, two: bool, row_done: &(dyn Fn(u32) + Sync)) -> Result<()> {
         let (c, w, render_samples) = (self.c, self.s.width as usize, self.render_samples);
         let params = c.params(&self.s, start, count)?;
         let scene = c.view(&params);
-        self.sum
-            .par_chunks_mut(w)
-            .zip(self.sum_sq.par_chunks_mut(w))
-            .zip(self.primary.par_chunks_mut(w))
-            .enumerate()
-            .for_each(|(y, ((sum, sum_sq), primary))| {
-                for x in 0..w {
-                    let before = sum[x].w;
-                    let (px, py) = (x as u32, y as u32);
-                    let (start, count) = (params.sample_start, params.sample_count);
-                    render_samples(&scene, &params, px, py, start, count, &mut sum[x], &mut sum_sq[x], &mut primary[x]);
-                    if sum[x].w > before {
-                        eprintln!(
-                            "warning: pixel ({x}, {y}): {} non-finite or negative sample(s) zeroed",
-                            sum[x].w - before
-                        );
-                    }
+        let n = self.sum.len();
+        let (runs, per) = if two { (2, BLOCK_SAMPLES) } else { (1, count) };
+        let (next, next_sq) = &mut self.next;
+        if two {
+            // Allocated by the first pass that renders two blocks at once.
+            next.clear();
+            next.resize(n, Vec4::ZERO);
+            next_sq.clear();
+            next_sq.resize(n, Vec4::ZERO);
+        }
+        let row = |y: usize,
+                   sum: &mut [Vec4],
+                   sum_sq: &mut [Vec4],
+                   primary: &mut [u32],
+                   next: Option<(&mut [Vec4], &mut [Vec4])>| {
+            let mut next = next;
+            for x in 0..w {
+                let mut acc = [sum[x], Vec4::ZERO];
+                let mut acc_sq = [sum_sq[x], Vec4::ZERO];
+                if let Some((r, r_sq)) = &next {
+                    (acc[1], acc_sq[1]) = (r[x], r_sq[x]);
                 }
-                row_done(count);
-            });
+                let before = acc[0].w + acc[1].w;
+                let (px, py) = (x as u32, y as u32);
+                let (start, count) = (params.sample_start, params.sample_count);
+                let (acc_runs, acc_sq_runs) = (&mut acc[..runs], &mut acc_sq[..runs]);
+                render_samples(&scene, &params, px, py, start, count, per, acc_runs, acc_sq_runs, &mut primary[x]);
+                (sum[x], sum_sq[x]) = (acc[0], acc_sq[0]);
+                if let Some((r, r_sq)) = &mut next {
+                    (r[x], r_sq[x]) = (acc[1], acc_sq[1]);
+                }
+                let after = acc[0].w + acc[1].w;
+                if after > before {
+                    eprintln!("warning: pixel ({x}, {y}): {} non-finite or negative sample(s) zeroed", after - before);
+                }
+            }
+            row_done(count);
+        };
+        let rows = self.sum.par_chunks_mut(w).zip(self.sum_sq.par_chunks_mut(w)).zip(self.primary.par_chunks_mut(w));
+        if two {
+            rows.zip(next.par_chunks_mut(w).zip(next_sq.par_chunks_mut(w)))
+                .enumerate()
+                .for_each(|(y, (((sum, sum_sq), primary), next))| row(y, sum, sum_sq, primary, Some(next)));
+        } else {
+            rows.enumerate().for_each(|(y, ((sum, sum_sq), primary))| row(y, sum, sum_sq, primary, None));
+        }
         Ok(())
     }
 
@@ -458,7 +494,18 @@ impl RunningSums for WithRows<'_, '_> {
     }
 
     fn add(&mut self, start: u32, count: u32) -> Result<()> {
-        self.0.add_rows(start, count, self.1)
+        self.0.add_rows(start, count, false, self.1)
+    }
+
+    fn add_two_blocks(&mut self, first: u32) -> Result<[Sums; 2]> {
+        self.zero()?;
+        self.0.add_rows(first, 2 * BLOCK_SAMPLES, true, self.1)?;
+        let first_block = self.read()?;
+        // The running sums become the second block's.
+        let (next, next_sq) = &mut self.0.next;
+        std::mem::swap(&mut self.0.sum, next);
+        std::mem::swap(&mut self.0.sum_sq, next_sq);
+        Ok([first_block, self.read()?])
     }
 
     fn read(&mut self) -> Result<Sums> {
@@ -480,7 +527,11 @@ impl RunningSums for CpuSums<'_> {
     }
 
     fn add(&mut self, start: u32, count: u32) -> Result<()> {
-        self.add_rows(start, count, &|_| {})
+        self.add_rows(start, count, false, &|_| {})
+    }
+
+    fn add_two_blocks(&mut self, first: u32) -> Result<[Sums; 2]> {
+        WithRows(self, &|_| {}).add_two_blocks(first)
     }
 
     fn read(&mut self) -> Result<Sums> {
@@ -573,8 +624,9 @@ impl adaptive::Passes for CpuPasses<'_> {
                             y as u32,
                             start,
                             count,
-                            &mut sum[x],
-                            &mut sum_sq[x],
+                            count,
+                            core::slice::from_mut(&mut sum[x]),
+                            core::slice::from_mut(&mut sum_sq[x]),
                             &mut primary[x],
                         );
                     }

@@ -2,12 +2,13 @@
 //! gigabytes of accumulation buffers, and an allocation the system cannot back ends the process
 //! by signal (or the out-of-memory killer) after the scene was loaded and built, with nothing
 //! said. Counted per pixel: the CPU path's sums of radiance and of its squares and the primary
-//! hit (36 bytes), the mean and variance images and the 8-bit output (27 bytes); a GPU adds the
+//! hit (36 bytes), the second block's sums of a pass of two blocks (32 bytes), the mean and
+//! variance images and the 8-bit output (27 bytes); a GPU adds the
 //! device buffers and their read-back copies (72 bytes; on lavapipe device memory is host memory).
 use anyhow::{bail, Result};
 
 /// Bytes per pixel of a CPU render, and what a GPU render adds.
-const CPU_BYTES_PER_PIXEL: u64 = 64;
+const CPU_BYTES_PER_PIXEL: u64 = 96;
 const GPU_EXTRA_BYTES_PER_PIXEL: u64 = 72;
 
 /// The memory this process may still use: the least of the system's available memory and the
@@ -58,7 +59,7 @@ mod tests {
 
     #[test]
     fn the_largest_image_needs_gigabytes_and_a_small_one_fits() {
-        assert_eq!(needed(16384, 16384, false), 16384 * 16384 * 64);
+        assert_eq!(needed(16384, 16384, false), 16384 * 16384 * 96);
         assert!(needed(16384, 16384, true) > needed(16384, 16384, false));
         check(64, 64, true).unwrap();
         assert!(available().is_some_and(|a| a > 0), "Linux reports the memory available");

@@ -56,6 +56,18 @@ pub(crate) trait RunningSums {
     fn zero(&mut self) -> Result<()>;
     /// Adds samples `[start, start + count)` to the running sums, in sample order.
     fn add(&mut self, start: u32, count: u32) -> Result<()>;
+    /// The sums of the two whole blocks from `first` (a block boundary), each added from zero
+    /// in sample order: what `zero`, `add` and `read` give block by block, which is this
+    /// default. The running sums are the second block's after it. The CPU overrides it to
+    /// render both blocks' samples in one sweep, sixteen to a pixel's group of lanes.
+    fn add_two_blocks(&mut self, first: u32) -> Result<[Sums; 2]> {
+        self.zero()?;
+        self.add(first, BLOCK_SAMPLES)?;
+        let a = self.read()?;
+        self.zero()?;
+        self.add(first + BLOCK_SAMPLES, BLOCK_SAMPLES)?;
+        Ok([a, self.read()?])
+    }
     /// The running sums (a GPU reads them back).
     fn read(&mut self) -> Result<Sums>;
     /// The primary hits, set by sample 0.
@@ -110,6 +122,15 @@ impl Blocks {
         let end = start + count;
         let mut at = start;
         while at < end {
+            if at.is_multiple_of(BLOCK_SAMPLES) && end - at >= 2 * BLOCK_SAMPLES {
+                let k = block_of(at);
+                for (j, sums) in dev.add_two_blocks(at)?.into_iter().enumerate() {
+                    self.fold.insert(Node { id: NodeId::block(k + j as u32, BLOCK_SAMPLES), sums })?;
+                }
+                at += 2 * BLOCK_SAMPLES;
+                self.spp = at;
+                continue;
+            }
             let block_end = (block_of(at) + 1) * BLOCK_SAMPLES;
             let n = end.min(block_end) - at;
             if at.is_multiple_of(BLOCK_SAMPLES) {

@@ -66,29 +66,32 @@ pub const fn covers(features: u32) -> bool {
 /// the web UI's) would pay for sixteen.
 pub const MIN_SAMPLES: u32 = 4;
 
-/// `integrator::render_samples_for::<FEATURES>`, the same sums bit for bit: sixteen samples at
-/// a time where `covers(FEATURES)` and the image is radiance, the scalar integrator otherwise.
+/// `integrator::render_runs_for::<FEATURES>`, the same sums bit for bit: sixteen samples at a
+/// time where `covers(FEATURES)` and the image is radiance, the scalar integrator otherwise. A
+/// group of sixteen may span runs (two blocks of eight): each lane's sample is added to its own
+/// run's sums, in sample order.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub fn render_samples_for<const FEATURES: u32>(
+pub fn render_runs_for<const FEATURES: u32>(
     scene: &SceneView,
     p: &RenderParams,
     x: u32,
     y: u32,
     start: u32,
     count: u32,
-    sum: &mut Vec4,
-    sum_sq: &mut Vec4,
+    per: u32,
+    sum: &mut [Vec4],
+    sum_sq: &mut [Vec4],
     primary: &mut u32,
 ) {
     if !covers(FEATURES) | (p.aov != AOV_RADIANCE) | (count < MIN_SAMPLES) {
-        crate::integrator::render_samples_for::<FEATURES>(scene, p, x, y, start, count, sum, sum_sq, primary);
+        crate::integrator::render_runs_for::<FEATURES>(scene, p, x, y, start, count, per, sum, sum_sq, primary);
         return;
     }
     let v = Variant::new(FEATURES, p);
     let pixel = y * p.width + x;
     let seeds = PixelSeeds::new(p.sampler, pixel, p.seed);
-    let (mut acc, mut acc_sq) = (*sum, *sum_sq);
+    let per = per.max(1);
     let end = start + count;
     let mut s = start;
     while s < end {
@@ -102,14 +105,13 @@ pub fn render_samples_for<const FEATURES: u32>(
         }
         // Summed in sample order, as the scalar integrator sums them.
         for i in 0..n as usize {
+            let run = ((s - start) as usize + i) / per as usize;
             let (l, bad) = sanitize(radiance.lane(i), false);
-            acc += Vec4::new(l.x, l.y, l.z, if bad { 1.0 } else { 0.0 });
-            acc_sq += Vec4::new(l.x * l.x, l.y * l.y, l.z * l.z, 0.0);
+            sum[run] += Vec4::new(l.x, l.y, l.z, if bad { 1.0 } else { 0.0 });
+            sum_sq[run] += Vec4::new(l.x * l.x, l.y * l.y, l.z * l.z, 0.0);
         }
         s += n;
     }
-    *sum = acc;
-    *sum_sq = acc_sq;
 }
 
 /// Whether the live lanes' rays are cast by brute force (`brute`): in place of the wide BVH

@@ -8,7 +8,7 @@ mod paths;
 use kdtrace::{
     kdbuild::BuildSettings,
     load,
-    render::{cpu, gpu, progressive::Progressive, Compiled, Rendered},
+    render::{cpu, features, gpu, progressive::Progressive, Compiled, Rendered},
     settings::{camera::Camera, Adaptive, AdaptiveMode, Dispatch, RenderSettings},
 };
 use paths::mesh;
@@ -78,6 +78,30 @@ fn cpu_passes_sum_as_one_render() {
         assert_eq!(p.image().unwrap().spp, SPP + 2);
         assert_eq!(p.into_image().unwrap().spp, SPP + 2);
     }
+}
+
+/// The lane integrator fills its sixteen lanes from two blocks of eight where a pass holds two
+/// whole ones (`RunningSums::add_two_blocks`) and splits the lanes' sums by block: the same bits
+/// as passes that never hold two (every split below cuts them), on a scene it covers.
+#[test]
+fn cpu_lane_passes_across_two_blocks_sum_as_single_blocks() {
+    let c = load(&mesh("CornellBox-Original/CornellBox-Original.obj"), BuildSettings::default()).unwrap().compiled;
+    let s = RenderSettings { spp: 40, ..settings() };
+    let s_cpu = RenderSettings { traversal: s.traversal.resolve(true), ..s };
+    assert!(cpu::runs_lanes(features::variant_bits(&c, &s_cpu)), "the scene must run the lane integrator");
+    let whole = cpu::render(&c, &s, &no_progress).unwrap();
+    let mean: f32 = whole.mean().iter().map(|p| p[0] + p[1] + p[2]).sum();
+    assert!(mean > 0.0, "the image is black");
+    // Passes of at most one block's worth, or straddling block boundaries: none holds two whole
+    // blocks from a boundary.
+    for split in [&[8, 8, 8, 8, 8][..], &[4, 12, 12, 12], &[15, 15, 10]] {
+        let what = format!("cpu lanes, passes {split:?}");
+        let mut p = cpu::progressive(&c, &s).unwrap();
+        same(&whole, &run(&mut p, split, &what), &what);
+    }
+    // And a pass of two blocks after a partial one: blocks 1 and 2 together.
+    let mut p = cpu::progressive(&c, &s).unwrap();
+    same(&whole, &run(&mut p, &[8, 16, 16], "cpu lanes, passes [8, 16, 16]"), "cpu lanes, passes [8, 16, 16]");
 }
 
 #[test]

@@ -21,8 +21,9 @@ use shared::scene::SceneView;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
-/// With a time limit, each pass is sized to take about this long, so the render stops close to
-/// its budget.
+/// With a time limit, each pass after the first is sized to take 90% of the time left, but at
+/// least this long while that much is left: the render ends close to its budget after a few
+/// passes, and the passes are long enough for whole blocks (`block_aligned`).
 const PASS_SECONDS: f64 = 0.25;
 /// Adaptive sampling adds at most this many samples per pixel and pass, so that a time limit
 /// is checked often.
@@ -363,11 +364,24 @@ pub fn render(c: &Compiled, s: &RenderSettings, progress: Progress) -> Result<Re
             }
             // Size the next pass from this one's speed, within what is left of the budget.
             let per_sample = pass_clock.elapsed().as_secs_f64() / count as f64;
-            let fit = (PASS_SECONDS.min(limit - elapsed) / per_sample.max(1e-9)).floor();
-            count = (fit as u32).max(1);
+            let left = limit - elapsed;
+            let fit = ((0.9 * left).max(PASS_SECONDS.min(left)) / per_sample.max(1e-9)).floor();
+            count = block_aligned(start, (fit as u32).max(1));
         }
     }
     passes.into_image()
+}
+
+/// A pass of about `count` samples from `start`, shortened to end on a block boundary where
+/// that leaves it a sample: its blocks are then whole, and two whole ones render in one sweep
+/// with the lanes full (`RunningSums::add_two_blocks`). Any split gives the same image.
+fn block_aligned(start: u32, count: u32) -> u32 {
+    let end = start.saturating_add(count) / BLOCK_SAMPLES * BLOCK_SAMPLES;
+    if end > start {
+        end - start
+    } else {
+        count
+    }
 }
 
 /// Starts a progressive render of `c` with `s` on the CPU (`progressive::Progressive`): the
@@ -647,6 +661,17 @@ impl adaptive::Passes for CpuPasses<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn time_limited_passes_end_on_block_boundaries_where_they_can() {
+        assert_eq!(block_aligned(1, 40), 39);
+        assert_eq!(block_aligned(0, 16), 16);
+        assert_eq!(block_aligned(8, 20), 16);
+        // Too short to reach the next boundary: as asked.
+        assert_eq!(block_aligned(1, 5), 5);
+        assert_eq!(block_aligned(9, 1), 1);
+        assert_eq!(block_aligned(u32::MAX - 3, 10), 10);
+    }
 
     #[test]
     fn every_feature_set_finds_the_variant_compiled_for_it() {

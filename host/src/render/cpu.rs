@@ -448,8 +448,7 @@ impl<'a> CpuSums<'a> {
                    sum: &mut [Vec4],
                    sum_sq: &mut [Vec4],
                    primary: &mut [u32],
-                   next: Option<(&mut [Vec4], &mut [Vec4])>| {
-            let mut next = next;
+                   mut next: Option<(&mut [Vec4], &mut [Vec4])>| {
             for x in 0..w {
                 let mut acc = [sum[x], Vec4::ZERO];
                 let mut acc_sq = [sum_sq[x], Vec4::ZERO];

@@ -61,12 +61,7 @@ pub(crate) trait RunningSums {
     /// default. The running sums are the second block's after it. The CPU overrides it to
     /// render both blocks' samples in one sweep, sixteen to a pixel's group of lanes.
     fn add_two_blocks(&mut self, first: u32) -> Result<[Sums; 2]> {
-        self.zero()?;
-        self.add(first, BLOCK_SAMPLES)?;
-        let a = self.read()?;
-        self.zero()?;
-        self.add(first + BLOCK_SAMPLES, BLOCK_SAMPLES)?;
-        Ok([a, self.read()?])
+        Ok([block_sums(self, first, BLOCK_SAMPLES)?, block_sums(self, first + BLOCK_SAMPLES, BLOCK_SAMPLES)?])
     }
     /// The running sums (a GPU reads them back).
     fn read(&mut self) -> Result<Sums>;
@@ -78,7 +73,7 @@ pub(crate) trait RunningSums {
 
 /// The sums of samples `[first, first + count)` (one block) added from zero on `dev`: a whole
 /// block at a time, as `multi`'s workers render them.
-pub(crate) fn block_sums(dev: &mut dyn RunningSums, first: u32, count: u32) -> Result<Sums> {
+pub(crate) fn block_sums<D: RunningSums + ?Sized>(dev: &mut D, first: u32, count: u32) -> Result<Sums> {
     debug_assert!(first.is_multiple_of(BLOCK_SAMPLES) && count <= BLOCK_SAMPLES);
     dev.zero()?;
     dev.add(first, count)?;

@@ -331,10 +331,42 @@ fn cpu_instruction_sets_render_the_same_image() {
 /// scalar integrator renders (`KDTRACE_CPU_LANES=off`), bit for bit, on the scenes it covers:
 /// one and many emitters, a constant environment (the bunny's sky), textures, direct light alone and paths long enough for
 /// Russian roulette and the sampler's independent sets, both samplers, sample counts that leave
-/// a group part-filled, and adaptive sampling's uneven counts. `render --json` says which ran.
+/// a group part-filled, adaptive sampling's uneven counts, and every material kind: rough and
+/// smooth glass, rough plastic, a rough conductor, MTL mirrors and glass, and glTF principled
+/// materials with textures, masks and transmission; an environment map and punctual lights.
+/// `render --json` says which ran. (Absorbing media: `tests/gltf_lights_and_media.rs`, against
+/// lavapipe.)
 #[test]
 fn lane_integrator_renders_the_scalar_image() {
-    let cases: [(&str, &[&str]); 7] = [
+    // The Cornell box's emitter with every other kind of light: a map, a point, a spot and a
+    // directional light.
+    let lights = tmp("lanes-lights.toml");
+    let sky = repo("tests/data/environment/sky.exr");
+    let mesh = repo("scenes/cornell-box.obj");
+    let toml = format!(
+        r#"environment = {{ file = {sky:?}, strength = 0.5 }}
+[[mesh]]
+file = {mesh:?}
+[[light]]
+type = "point"
+position = [0.25, 0.4, -0.25]
+intensity = 0.3
+[[light]]
+type = "spot"
+position = [0.4, 0.5, -0.1]
+direction = [0, -1, 0]
+intensity = 1
+inner_cone_angle = 0.2
+outer_cone_angle = 0.5
+[[light]]
+type = "directional"
+direction = [-0.3, -0.2, -1]
+intensity = 2
+"#
+    );
+    std::fs::write(&lights, toml).unwrap();
+    let lights = lights.to_string_lossy().into_owned();
+    let cases: [(&str, &[&str]); 16] = [
         ("scenes/cornell-box.obj", &["--spp", "21", "--bounces", "6"]),
         ("scenes/cornell-box.obj", &["--spp", "16", "--bounces", "0", "--sampler", "independent"]),
         ("scenes/bunny.toml", &["--spp", "9", "--bounces", "3", "--seed", "7"]),
@@ -358,6 +390,15 @@ fn lane_integrator_renders_the_scalar_image() {
                 "--fov=70",
             ],
         ),
+        ("tests/data/cornell-materials/cornell-glass.toml", &["--spp", "19", "--bounces", "8"]),
+        ("tests/data/cornell-materials/cornell-smooth-glass.toml", &["--spp", "16", "--bounces", "8"]),
+        ("tests/data/cornell-materials/cornell-roughplastic.toml", &["--spp", "16", "--bounces", "5"]),
+        ("tests/data/cornell-metal/cornell-metal.toml", &["--spp", "20", "--bounces", "6", "--seed", "3"]),
+        ("tests/data/meshes/CornellBox-Sphere/CornellBox-Sphere.obj", &["--spp", "16", "--bounces", "8"]),
+        ("tests/data/gltf/TransmissionTest/TransmissionTest.gltf", &["--spp", "16", "--bounces", "6"]),
+        ("tests/data/environment/sky-scene.toml", &["--spp", "24", "--bounces", "6"]),
+        ("tests/data/gltf/EmissiveStrengthTest/EmissiveStrengthTest.gltf", &["--spp", "16", "--bounces", "4"]),
+        (&lights, &["--spp", "20", "--bounces", "5"]),
     ];
     for (k, (scene, extra)) in cases.iter().enumerate() {
         let mut images = Vec::new();
@@ -380,11 +421,11 @@ fn lane_integrator_renders_the_scalar_image() {
         let differ = pixels_differing(&images[0], &images[1]);
         assert_eq!(differ, 0, "{scene} {extra:?}: {differ} pixels differ between the lane and scalar integrators");
     }
-    // A scene it does not cover (glass) and the generic code run the scalar integrator.
-    for (scene, extra) in [
-        ("tests/data/cornell-materials/cornell-glass.toml", &[][..]),
-        ("scenes/cornell-box.obj", &["--specialize", "off"][..]),
-    ] {
+    // The generic code (the reference every variant is tested against) and the AOVs run the
+    // scalar integrator.
+    for (scene, extra) in
+        [("scenes/cornell-box.obj", &["--specialize", "off"][..]), ("scenes/cornell-box.obj", &["--aov", "albedo"][..])]
+    {
         let out = tmp("lanes-not.exr");
         let o = kdtrace(
             &[

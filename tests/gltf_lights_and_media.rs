@@ -157,7 +157,7 @@ fn clear_coats_reflect_over_the_base() {
 /// distance of 1 lets a = e^(−σ·0.5) = (0.707, 0.894, 1) through per crossing. Under a sky of 1,
 /// seen at normal incidence, the slab shows its reflection F plus what crosses it, reflected
 /// inside any number of times: F + (1 − F)²·a / (1 − F·a), F = 0.04 for index 1.5 (the clear
-/// slab shows 1). The CPU and lavapipe agree bit for bit.
+/// slab shows 1). The CPU (its lane integrator) and lavapipe agree bit for bit.
 #[test]
 fn volumes_absorb_by_beer_lambert() {
     let dir = folder("volume");
@@ -168,6 +168,8 @@ fn volumes_absorb_by_beer_lambert() {
         let s = settings(&l, SceneSettings { environment: Some([1.0; 3]), bounces: Some(6), ..small(3, 3, 4096) });
         let r = cpu::render(&l.compiled, &s, &none).unwrap();
         if let Some(g) = gpu {
+            // The CPU's lane integrator against lavapipe's scalar one.
+            assert!(cpu::runs_lanes(&l.compiled, &s), "{name}: the CPU must run the lane integrator");
             // Fewer samples on lavapipe: a dispatch holds one 8-sample block.
             let s = RenderSettings { spp: 64, ..s };
             let (a, b) = (cpu::render(&l.compiled, &s, &none).unwrap(), g.render(&l.compiled, &s, &none).unwrap());

@@ -293,7 +293,8 @@ fn shade_vertex<R: Recorder>(
                 scene,
                 p,
                 v,
-                path,
+                path.beta,
+                &mut path.radiance,
                 mat,
                 light.triangle,
                 light.pmf,
@@ -413,14 +414,16 @@ fn shade_vertex<R: Recorder>(
 /// Next-event estimation toward a light-table entry that is not a triangle (`kind`:
 /// `LIGHT_NOT_TRIANGLE | offset`, with `LIGHT_ENVIRONMENT_BIT` for the environment map): the map
 /// is sampled by its distribution and MIS-weighted against the BSDF; a punctual light is a delta
-/// and takes its whole weight.
+/// and takes its whole weight. The contribution, for a path of throughput `beta`, is added to
+/// `radiance` (also by the lane integrator, lane by lane).
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-fn sample_other_light<R: Recorder>(
+pub(crate) fn sample_other_light<R: Recorder>(
     scene: &SceneView,
     p: &RenderParams,
     v: Variant,
-    path: &mut Path,
+    beta: Vec3,
+    radiance: &mut Vec3,
     mat: &crate::layout::Material,
     kind: u32,
     pmf: f32,
@@ -481,8 +484,8 @@ fn sample_other_light<R: Recorder>(
         event.status = LIGHT_BLOCKED;
         event.mis_weight = weight;
         if !shadow.hit.is_hit() {
-            let added = path.beta * f * incident * (cos_i.abs() * weight / light_pdf);
-            path.radiance += added;
+            let added = beta * f * incident * (cos_i.abs() * weight / light_pdf);
+            *radiance += added;
             event.status = LIGHT_UNBLOCKED;
             event.contribution = added;
         }

@@ -4,7 +4,7 @@
 use crate::render::blocks::{Node, Sums, BLOCK_SAMPLES};
 use crate::render::progressive::{Blocks, Progressive, RunningSums};
 use crate::render::{adaptive, Compiled, Progress, Rendered};
-use crate::settings::RenderSettings;
+use crate::settings::{Aov, RenderSettings};
 use anyhow::{bail, Result};
 use rayon::prelude::*;
 use shared::features::{
@@ -37,7 +37,9 @@ pub type VariantFn = fn(&SceneView, &RenderParams, u32, u32, u32, u32, u32, &mut
 /// The compiled variants: every combination of the feature bits outside the materials and the
 /// surface bits, each for diffuse alone and for every material kind, and all of those once
 /// without and once with the surface bits (`cpu_variant_bits`): `VARIANTS[i]` is
-/// `render_runs_for::<{ CANONICAL[i] }>`.
+/// `render_runs_for::<{ CANONICAL[i] }>`, and `LANE_VARIANTS[i]` the same through
+/// `shared::lanes::integrator::render_runs_for`, which renders sixteen samples of a pixel at
+/// once and the same image bit for bit (it covers every variant).
 macro_rules! variants {
     ($($bits:literal)*) => {
         #[cfg_attr(not(test), allow(dead_code))]
@@ -46,6 +48,10 @@ macro_rules! variants {
         /// The same variants compiled for AVX-512 (`avx512::render_samples`).
         #[cfg(target_arch = "x86_64")]
         static VARIANTS_AVX512: [VariantFn; 64] = [$(avx512::render_samples::<$bits> as VariantFn),*];
+        static LANE_VARIANTS: [VariantFn; 64] = [$(lanes_render_runs_for::<$bits> as VariantFn),*];
+        /// The same compiled for AVX-512 (`avx512::render_samples_lanes`).
+        #[cfg(target_arch = "x86_64")]
+        static LANE_VARIANTS_AVX512: [VariantFn; 64] = [$(avx512::render_samples_lanes::<$bits> as VariantFn),*];
     };
 }
 variants!(
@@ -55,46 +61,18 @@ variants!(
     4072 4073 4074 4075 4076 4077 4078 4079 4088 4089 4090 4091 4092 4093 4094 16383
 );
 
-/// The variants the lane integrator covers (`shared::lanes::integrator::covers`): those of
-/// `CANONICAL` with diffuse alone and without the new lights, without and with the surface bits
-/// (`lane_index`), each through `shared::lanes::integrator::render_runs_for`, which renders
-/// sixteen samples of a pixel at once and the same image bit for bit.
-macro_rules! lane_variants {
-    ($($bits:literal)*) => {
-        #[cfg_attr(not(test), allow(dead_code))]
-        const LANE_CANONICAL: [u32; 30] = [$($bits),*];
-        static LANE_VARIANTS: [VariantFn; 30] = [$(lanes_render_runs_for::<$bits> as VariantFn),*];
-        /// The same compiled for AVX-512 (`avx512::render_samples_lanes`).
-        #[cfg(target_arch = "x86_64")]
-        static LANE_VARIANTS_AVX512: [VariantFn; 30] = [$(avx512::render_samples_lanes::<$bits> as VariantFn),*];
-    };
-}
-lane_variants!(
-    8 9 10 11 12 13 14 15 24 25 26 27 28 29 30
-    3592 3593 3594 3595 3596 3597 3598 3599 3608 3609 3610 3611 3612 3613 3614
-);
-
-/// Where `CANONICAL[i]` sits in `LANE_CANONICAL`, if the lane integrator covers it: the first
-/// fifteen of each half of the table (the sixteenth has the new lights, the second 16 every
-/// material kind).
-fn lane_index(i: usize) -> Option<usize> {
-    match i {
-        0..15 => Some(i),
-        32..47 => Some(i - 17),
-        _ => None,
-    }
+/// Where the CPU's variant for feature bits `bits` sits in `LANE_VARIANTS`, unless the render is
+/// not specialised (`--specialize off` runs the scalar integrator's generic code, the reference
+/// every variant is tested against) or `KDTRACE_CPU_LANES=off` asks for the scalar integrator
+/// (to compare the two).
+fn lane_variant_index(bits: u32, specialize: bool) -> Option<usize> {
+    (specialize && std::env::var("KDTRACE_CPU_LANES").as_deref() != Ok("off")).then(|| variant_index(bits))
 }
 
-/// Where the CPU's variant for feature bits `bits` sits in `LANE_VARIANTS`, if it renders them
-/// with the lane integrator: where that covers `cpu_variant_bits(bits)`, unless
-/// `KDTRACE_CPU_LANES=off` asks for the scalar one (to compare the two).
-fn lane_variant_index(bits: u32) -> Option<usize> {
-    lane_index(variant_index(bits)).filter(|_| std::env::var("KDTRACE_CPU_LANES").as_deref() != Ok("off"))
-}
-
-/// Whether the CPU renders feature bits `bits` with the lane integrator (`lane_variant_index`).
-pub fn runs_lanes(bits: u32) -> bool {
-    lane_variant_index(bits).is_some()
+/// Whether the CPU renders `c` with `s` through the lane integrator: the radiance image with
+/// the lanes' variant (`lane_variant_index`; an AOV runs the scalar integrator).
+pub fn runs_lanes(c: &Compiled, s: &RenderSettings) -> bool {
+    (s.aov == Aov::Radiance) && lane_variant_index(crate::render::features::variant_bits(c, s), s.specialize).is_some()
 }
 
 /// The feature bits the CPU compiles a variant for, covering `bits`: the bits outside the
@@ -138,15 +116,21 @@ fn variant_index(bits: u32) -> usize {
     (low + kinds + surface) as usize
 }
 
-/// The CPU's variant of the integrator for feature bits `bits` (`cpu_variant_bits`), compiled
-/// for AVX-512 where this CPU has it (`Isa::detect`).
+/// The CPU's specialised variant of the integrator for feature bits `bits` (`cpu_variant_bits`),
+/// compiled for AVX-512 where this CPU has it (`Isa::detect`).
 pub fn variant(bits: u32) -> VariantFn {
-    variant_for(bits, Isa::detect())
+    variant_for(bits, true, Isa::detect())
+}
+
+/// The variant that renders `c` with `s`: `variant` of the scene's feature bits, or with
+/// `--specialize off` the scalar integrator's generic code.
+fn variant_rendering(c: &Compiled, s: &RenderSettings) -> VariantFn {
+    variant_for(crate::render::features::variant_bits(c, s), s.specialize, Isa::detect())
 }
 
 /// `variant` compiled for `isa`; `Isa::Avx512` only where the CPU has it (`Isa::detect`).
-fn variant_for(bits: u32, isa: Isa) -> VariantFn {
-    if let Some(i) = lane_variant_index(bits) {
+fn variant_for(bits: u32, specialize: bool, isa: Isa) -> VariantFn {
+    if let Some(i) = lane_variant_index(bits, specialize) {
         return match isa {
             Isa::Baseline => LANE_VARIANTS[i],
             #[cfg(target_arch = "x86_64")]
@@ -319,7 +303,7 @@ pub fn render(c: &Compiled, s: &RenderSettings, progress: Progress) -> Result<Re
     let (w, h) = (s.width, s.height);
     let n = (w * h) as usize;
     if let Some(a) = s.adaptive {
-        let render_samples = variant(crate::render::features::variant_bits(c, s));
+        let render_samples = variant_rendering(c, s);
         let params = c.params(s, 0, 0)?;
         let mut dev = CpuPasses {
             scene: c.view(&params),
@@ -417,7 +401,7 @@ impl<'a> CpuSums<'a> {
         let n = s.width as usize * s.height as usize;
         Ok(Self {
             c,
-            render_samples: variant(crate::render::features::variant_bits(c, &s)),
+            render_samples: variant_rendering(c, &s),
             s,
             sum: vec![Vec4::ZERO; n],
             sum_sq: vec![Vec4::ZERO; n],
@@ -686,13 +670,9 @@ mod tests {
     }
 
     #[test]
-    fn the_lane_variants_are_those_the_lane_integrator_covers() {
+    fn the_lane_integrator_covers_every_variant() {
         for (i, &c) in CANONICAL.iter().enumerate() {
-            let lanes = lane_index(i);
-            assert_eq!(lanes.is_some(), shared::lanes::integrator::covers(c), "variant {i}: bits {c:#b}");
-            if let Some(k) = lanes {
-                assert_eq!(LANE_CANONICAL[k], c);
-            }
+            assert!(shared::lanes::integrator::covers(c), "variant {i}: bits {c:#b}");
         }
     }
 }

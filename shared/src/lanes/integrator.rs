@@ -20,45 +20,43 @@ use super::warp::{
     weights, Triangles,
 };
 use super::{brute, sqrt, Hits, F, LANES, M, U, V3};
+use crate::environment;
+use crate::exp::exp_neg;
 use crate::features::{
-    Variant, FEATURE_ALPHA_MASKS, FEATURE_DIFFUSE, FEATURE_EMITTERS, FEATURE_ENVIRONMENT, FEATURE_ENVIRONMENT_MAP,
-    FEATURE_INDIRECT, FEATURE_MANY_EMITTERS, FEATURE_MATERIALS, FEATURE_PUNCTUAL, FEATURE_TEXTURES,
+    Variant, FEATURES_ALL, FEATURE_DIFFUSE, FEATURE_EMITTERS, FEATURE_ENVIRONMENT, FEATURE_ENVIRONMENT_MAP,
+    FEATURE_INDIRECT, FEATURE_MANY_EMITTERS, FEATURE_MATERIALS, FEATURE_PRINCIPLED, FEATURE_PUNCTUAL, FEATURE_TEXTURES,
     FEATURE_VERTEX_NORMALS,
 };
 use crate::glam::{Vec3, Vec4};
-use crate::integrator::{RR_MAX_SURVIVAL, SHADOW_EPSILON};
+use crate::integrator::{sample_other_light, RR_MAX_SURVIVAL, SHADOW_EPSILON};
 use crate::kdtree::Hit;
-use crate::layout::{RenderParams, AOV_RADIANCE, NO_HIT, NO_LIGHT, TRAVERSAL_WIDE_BVH};
+use crate::layout::{
+    Material, RenderParams, AOV_RADIANCE, LIGHT_NOT_TRIANGLE, MATERIAL_DIFFUSE, NO_ENVIRONMENT_MAP, NO_HIT, NO_LIGHT,
+    TRAVERSAL_WIDE_BVH,
+};
+use crate::material::{absorption, eval, is_delta, picks_lobe, sample as sample_bsdf, transmits};
 use crate::numerics::sanitize;
 use crate::raycast::query;
+use crate::record::NoRecord;
 use crate::rng::PixelSeeds;
+use crate::sampling::power_heuristic as power_heuristic_one;
 use crate::sampling::{remap_in_light, select_light, INV_PI};
 use crate::scene::SceneView;
 use crate::surface::{emission_at, looks_up_textures, resolve, shading_normal};
-use crate::vecmath::xyz;
+use crate::vecmath::{dot, length, xyz};
 use core::simd::cmp::{SimdPartialEq, SimdPartialOrd};
 use core::simd::num::SimdFloat;
 use core::simd::Select;
 
-/// The features this integrator implements: Lambertian materials alone, emitting triangles
-/// (one or many), a constant environment, indirect light, textures, alpha masks and vertex
-/// normals. Other materials, environment maps and punctual lights go to the scalar integrator.
-/// Texture lookups, alpha tests and shading normals run lane by lane, through the scalar
-/// integrator's own functions (`surface`).
-pub const COVERED: u32 = FEATURE_EMITTERS
-    | FEATURE_MANY_EMITTERS
-    | FEATURE_ENVIRONMENT
-    | FEATURE_DIFFUSE
-    | FEATURE_INDIRECT
-    | FEATURE_TEXTURES
-    | FEATURE_ALPHA_MASKS
-    | FEATURE_VERTEX_NORMALS;
-
-/// Whether a variant with feature bits `features` runs here (`COVERED`, with diffuse the only
-/// material kind).
+/// Whether a variant with feature bits `features` runs here: every feature does, given at
+/// least one material kind. Texture lookups, alpha tests, shading normals, the BSDFs other than
+/// Lambertian, the environment map and punctual lights run lane by lane, through the scalar
+/// integrator's own functions (`surface`, `material`, `environment`,
+/// `integrator::sample_other_light`); the Lambertian BSDF and emitting triangles' light samples
+/// run on all sixteen lanes at once.
 #[inline(always)]
 pub const fn covers(features: u32) -> bool {
-    (features & !COVERED == 0) & (features & FEATURE_MATERIALS == FEATURE_DIFFUSE)
+    (features & !FEATURES_ALL == 0) & (features & FEATURE_MATERIALS != 0)
 }
 
 /// Calls for fewer samples a pixel than this run the scalar integrator: a group's cost hardly
@@ -239,6 +237,9 @@ fn trace_paths(
     let mut bsdf_pdf = zero;
     let mut bounce = 0u32;
     let mut first = [NO_HIT; LANES];
+    // Whether some lanes shade through the scalar integrator's functions (`Kinds`): material
+    // kinds other than Lambertian, the environment map's and punctual lights' samples.
+    let kinds = !v.only_material(FEATURE_DIFFUSE) | v.has(FEATURE_ENVIRONMENT_MAP) | v.has(FEATURE_PUNCTUAL);
     let mut alive = live;
     let lights =
         (v.has(FEATURE_EMITTERS) | v.has(FEATURE_ENVIRONMENT_MAP) | v.has(FEATURE_PUNCTUAL)) & (scene.light_count > 0);
@@ -250,7 +251,24 @@ fn trace_paths(
         }
         let hit = hits.triangle.simd_ne(U::splat(NO_HIT)) & alive;
         let escaped = alive & !hit;
-        if v.has(FEATURE_ENVIRONMENT) & escaped.any() {
+        if v.has(FEATURE_ENVIRONMENT_MAP) & (p.environment_map != NO_ENVIRONMENT_MAP) {
+            // The map, MIS-weighted against its light samples (`trace_path`), lane by lane.
+            let o = p.environment_map - 1;
+            for i in 0..LANES {
+                if escaped.test(i) {
+                    let d = dir.lane(i);
+                    let le = environment::eval(scene.textures, o, d);
+                    let mut weight = 1.0;
+                    if bounce > 0 {
+                        let light_pdf =
+                            environment::selection_pmf(scene.textures, o) * environment::pdf(scene.textures, o, d);
+                        weight = power_heuristic_one(bsdf_pdf[i], light_pdf);
+                    }
+                    let sum = radiance.lane(i) + beta.lane(i) * le * weight;
+                    (radiance.x[i], radiance.y[i], radiance.z[i]) = (sum.x, sum.y, sum.z);
+                }
+            }
+        } else if v.has(FEATURE_ENVIRONMENT) & escaped.any() {
             radiance = V3::select(escaped, radiance + beta * V3::splat(xyz(p.environment)), radiance);
         }
         alive = hit;
@@ -266,6 +284,10 @@ fn trace_paths(
         let mut g = gather(scene, &triangles, alive);
         // The hit's barycentric weights, for its point, textures and vertex normals.
         let b = weights(hits.u, hits.v, hits.w);
+        // With kinds other than Lambertian, the materials with their textures looked up, for
+        // the BSDFs that run lane by lane (`Kinds`); a diffuse-only variant keeps none.
+        let mut resolved = [Material::default(); LANES];
+        let mut textured = [false; LANES];
         if v.has(FEATURE_TEXTURES) & !scene.textures.is_empty() {
             // `surface::resolve`, lane by lane: the texels at the hit replace the constants.
             for (i, &tri) in triangles.iter().enumerate() {
@@ -277,6 +299,9 @@ fn trace_paths(
                     let r = resolve(scene, v, base, tri, (b.0[i], b.1[i], b.2[i]));
                     (g.albedo.x[i], g.albedo.y[i], g.albedo.z[i]) = (r.albedo.x, r.albedo.y, r.albedo.z);
                     (g.emission.x[i], g.emission.y[i], g.emission.z[i]) = (r.emission.x, r.emission.y, r.emission.z);
+                    if kinds {
+                        (resolved[i], textured[i]) = (r, true);
+                    }
                 }
             }
         }
@@ -285,6 +310,36 @@ fn trace_paths(
         let n = g.tris.n;
         let (pos, error) = g.tris.interpolate(b.0, b.1, b.2);
         let front = ng.dot(dir).simd_lt(zero);
+        let wo = -dir.normalize();
+        let k = if kinds {
+            let mats: [&Material; LANES] = core::array::from_fn(|i| {
+                if textured[i] | !alive.test(i) {
+                    &resolved[i]
+                } else {
+                    &scene.materials[g.material[i] as usize]
+                }
+            });
+            Some(Kinds::new(v, mats, alive, wo, front))
+        } else {
+            None
+        };
+        // A ray that reaches a surface from behind travelled inside it: an absorbing medium
+        // takes its share (`shade_vertex`), lane by lane.
+        if let (Some(k), true) = (&k, v.has(FEATURE_PRINCIPLED)) {
+            for i in 0..LANES {
+                if !alive.test(i) {
+                    continue;
+                }
+                let sigma = absorption(v, k.mats[i]);
+                let d = dir.lane(i);
+                if ((sigma.x > 0.0) | (sigma.y > 0.0) | (sigma.z > 0.0)) && dot(ng.lane(i), d) > 0.0 {
+                    let d = t[i] * length(d);
+                    beta.x[i] *= exp_neg(-sigma.x * d);
+                    beta.y[i] *= exp_neg(-sigma.y * d);
+                    beta.z[i] *= exp_neg(-sigma.z * d);
+                }
+            }
+        }
 
         if v.has(FEATURE_EMITTERS) {
             let le = V3::select(front, g.emission, V3::ZERO);
@@ -316,7 +371,6 @@ fn trace_paths(
         // `surface::shading_normal`, lane by lane where there are vertex normals; the flat
         // normal otherwise.
         let ns = if v.has(FEATURE_VERTEX_NORMALS) & !scene.attributes.is_empty() {
-            let wo = -dir.normalize();
             let mut ns = [Vec3::ZERO; LANES];
             for (i, n) in ns.iter_mut().enumerate() {
                 if alive.test(i) {
@@ -329,16 +383,57 @@ fn trace_paths(
         };
         let sides = Sides { check: v.has(FEATURE_VERTEX_NORMALS), nf, ns };
         if lights {
-            next_event(scene, p, v, many, &g, alive, pos, error, spawn, sides, beta, u_select, u_light, &mut radiance);
+            let nee = k.as_ref().map_or(alive, |k| alive & !k.delta);
+            let bsdfs = k.as_ref();
+            next_event(
+                scene,
+                p,
+                v,
+                many,
+                &g,
+                bsdfs,
+                nee,
+                pos,
+                error,
+                spawn,
+                sides,
+                beta,
+                u_select,
+                u_light,
+                &mut radiance,
+            );
         }
 
         // The Lambertian BSDF sample (`material::diffuse::sample`); no lobe to pick.
         let local = cosine_hemisphere(ub1, ub2);
         let (tb, bb) = orthonormal_basis(ns);
-        let wi = tb.scale(local.x) + bb.scale(local.y) + ns.scale(local.z);
-        let pdf = local.z * F::splat(INV_PI);
+        let mut wi = tb.scale(local.x) + bb.scale(local.y) + ns.scale(local.z);
+        let mut pdf = local.z * F::splat(INV_PI);
+        let mut weight = g.albedo;
+        // The lanes whose next ray leaves from the far side (refracted).
+        let mut through = M::splat(false);
+        if let Some(k) = &k {
+            // The other kinds' samples, lane by lane (`material::sample`), the lobe picked by
+            // the uniform the scalar integrator draws (`independent_after`).
+            let todo = alive & k.other;
+            if todo.any() {
+                let u_pick = rng.independent_after();
+                for i in 0..LANES {
+                    if !todo.test(i) {
+                        continue;
+                    }
+                    let m = k.mats[i];
+                    let u3 = if picks_lobe(v, m) { u_pick[i] } else { 0.0 };
+                    let bs =
+                        sample_bsdf(v, m, scene.textures, ns.lane(i), wo.lane(i), front.test(i), ub1[i], ub2[i], u3);
+                    (wi.x[i], wi.y[i], wi.z[i], pdf[i]) = (bs.wi.x, bs.wi.y, bs.wi.z, bs.pdf);
+                    (weight.x[i], weight.y[i], weight.z[i]) = (bs.weight.x, bs.weight.y, bs.weight.z);
+                    through.set(i, transmits(v, m) & (dot(bs.wi, nf.lane(i)) < 0.0));
+                }
+            }
+        }
         alive &= !pdf.simd_le(zero) & sides.consistent(wi);
-        beta = V3::select(alive, beta * g.albedo, beta);
+        beta = V3::select(alive, beta * weight, beta);
         bsdf_pdf = pdf;
         bounce += 1;
         if bounce >= v.rr_start {
@@ -346,7 +441,7 @@ fn trace_paths(
             alive &= !u_roulette.simd_ge(survive);
             beta = beta.divide(survive);
         }
-        origin = spawn;
+        origin = if through.any() { V3::select(through, offset_ray_origin(pos, error, -nf), spawn) } else { spawn };
         dir = wi;
     }
     (radiance, first)
@@ -374,6 +469,27 @@ impl Sides {
     }
 }
 
+/// The live lanes' materials in a variant with kinds other than Lambertian: the material each
+/// lane's BSDF sees (its textures looked up), the lanes whose kind is not Lambertian (their
+/// BSDFs run lane by lane through `material`, the Lambertian lanes on all lanes at once), and
+/// those whose every lobe is a delta (no light sample), with the vertex's `wo` and sides.
+struct Kinds<'a> {
+    mats: [&'a Material; LANES],
+    other: M,
+    delta: M,
+    wo: V3,
+    front: M,
+}
+
+impl<'a> Kinds<'a> {
+    #[inline(always)]
+    fn new(v: Variant, mats: [&'a Material; LANES], alive: M, wo: V3, front: M) -> Self {
+        let other = M::from_array(core::array::from_fn(|i| mats[i].kind != MATERIAL_DIFFUSE)) & alive;
+        let delta = M::from_array(core::array::from_fn(|i| is_delta(v, mats[i]))) & alive;
+        Kinds { mats, other, delta, wo, front }
+    }
+}
+
 /// Next-event estimation toward emitting triangles (`shade_vertex`'s light sample) for the
 /// live lanes: a light picked per lane, a point on it, the shadow rays one by one, the
 /// unblocked lanes' MIS-weighted contributions added to `radiance`.
@@ -385,6 +501,7 @@ fn next_event(
     v: Variant,
     many: bool,
     g: &Gathered,
+    kinds: Option<&Kinds>,
     alive: M,
     pos: V3,
     error: F,
@@ -399,6 +516,7 @@ fn next_event(
     let (nf, ns) = (sides.nf, sides.ns);
     let mut triangle = [0u32; LANES];
     let (mut pmf, mut area, mut u1) = ([0.0f32; LANES], [1.0f32; LANES], u_select.to_array());
+    let mut on_triangle = alive;
     for i in 0..LANES {
         if alive.test(i) {
             let index = if many { select_light(scene.lights, scene.light_count, u1[i]) } else { 0 };
@@ -407,7 +525,46 @@ fn next_event(
                 u1[i] = remap_in_light(scene.lights, index, u1[i]);
             }
             (triangle[i], pmf[i], area[i]) = (light.triangle, light.pmf, light.area);
+            let other =
+                (v.has(FEATURE_ENVIRONMENT_MAP) | v.has(FEATURE_PUNCTUAL)) & (light.triangle >= LIGHT_NOT_TRIANGLE);
+            if let (Some(k), true) = (kinds, other) {
+                // The environment map or a punctual light: the scalar integrator's sample.
+                on_triangle.set(i, false);
+                let mut sum = radiance.lane(i);
+                let (m, front) = (k.mats[i], k.front.test(i));
+                let (p_i, s_i, n_i, w_i) = (pos.lane(i), spawn.lane(i), nf.lane(i), k.wo.lane(i));
+                let e = Vec3::splat(error[i]);
+                let (kind, u) = (light.triangle, u_light[i]);
+                let mut rec = NoRecord;
+                let b = beta.lane(i);
+                sample_other_light(
+                    scene,
+                    p,
+                    v,
+                    b,
+                    &mut sum,
+                    m,
+                    kind,
+                    light.pmf,
+                    index,
+                    p_i,
+                    s_i,
+                    e,
+                    n_i,
+                    ns.lane(i),
+                    w_i,
+                    front,
+                    u1[i],
+                    u,
+                    &mut rec,
+                );
+                (radiance.x[i], radiance.y[i], radiance.z[i]) = (sum.x, sum.y, sum.z);
+            }
         }
+    }
+    let alive = on_triangle;
+    if !alive.any() {
+        return;
     }
     let mut lg = gather(scene, &triangle, alive);
     let (b0, b1, b2) = uniform_triangle(F::from_array(u1), u_light);
@@ -429,8 +586,19 @@ fn next_event(
     let cos_l = -nl.dot(wi);
     // The Lambertian BSDF's value and density (`material::diffuse::eval`).
     let cos_i = ns.dot(wi);
-    let pdf_bsdf = cos_i.simd_gt(zero).select(cos_i * F::splat(INV_PI), zero);
-    let f = g.albedo.scale(F::splat(INV_PI));
+    let mut pdf_bsdf = cos_i.simd_gt(zero).select(cos_i * F::splat(INV_PI), zero);
+    let mut f = g.albedo.scale(F::splat(INV_PI));
+    if let Some(k) = kinds {
+        // The other kinds' values and densities, lane by lane (`material::eval`).
+        let todo = alive & k.other;
+        for i in 0..LANES {
+            if todo.test(i) {
+                let (fi, pi) =
+                    eval(v, k.mats[i], scene.textures, ns.lane(i), k.wo.lane(i), wi.lane(i), k.front.test(i));
+                (f.x[i], f.y[i], f.z[i], pdf_bsdf[i]) = (fi.x, fi.y, fi.z, pi);
+            }
+        }
+    }
     let valid = alive & cos_l.simd_gt(zero) & pdf_bsdf.simd_gt(zero) & dist2.simd_gt(zero) & sides.consistent(wi);
     if !valid.any() {
         return;

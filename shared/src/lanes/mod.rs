@@ -7,7 +7,8 @@
 //! the sampler's hashes and scrambles, the camera, warps, hit points, ray offsets and MIS
 //! weights. Here the sixteen samples of a pixel advance in lockstep, vertex by vertex: every
 //! such step is one instruction for all of them (an AVX-512 register holds sixteen f32), and
-//! only the traversal and the table lookups (triangles, materials, lights) run lane by lane.
+//! only the traversal, the table lookups (triangles, materials, lights) and the BSDFs other than
+//! Lambertian run lane by lane.
 //!
 //! Each lane computes exactly the operations the scalar integrator computes for its sample,
 //! in the same order (`+ − × ÷ sqrt` are correctly rounded lane by lane, and nothing is
@@ -15,8 +16,9 @@
 //! function with its scalar original, and whole renders with the scalar integrator's
 //! (`tests/cli.rs`). The scalar integrator stays the reference: the GPU, the pixel replay and
 //! every feature this one does not cover run it. What this one covers is
-//! `integrator::covers`: Lambertian materials (with textures, alpha masks and vertex normals or
-//! without), emitting triangles and a constant environment, the radiance image.
+//! `integrator::covers`: every material kind (with textures, alpha masks and vertex normals or
+//! without; the Lambertian BSDF in lanes, the others lane by lane through `material`),
+//! emitting triangles and a constant environment, the radiance image.
 //!
 //! - `sampler`: the sampler's sets for sixteen samples (`rng::Sampler`, `sobol`).
 //! - `warp`: the camera, warps, hit points, ray offsets and the MIS weight.

@@ -133,6 +133,14 @@ impl LaneSampler {
         let b = self.bits(false);
         (unit(b[0]), unit(b[1]))
     }
+
+    /// `Sampler::independent_after`: a uniform independent of the last set, for a BSDF's lobe
+    /// pick.
+    #[inline(always)]
+    pub fn independent_after(&self) -> F {
+        let set = U::splat(self.set.wrapping_sub(1));
+        unit(pcg4d(U::splat(self.pixel), self.sample, set, U::splat(self.seed))[3])
+    }
 }
 
 #[cfg(test)]
@@ -169,6 +177,10 @@ mod tests {
                                 assert_eq!(l[d][i].to_bits(), x[d].to_bits(), "{kind} {pixel} {set} {i} {d}");
                             }
                         }
+                    }
+                    let pick = lanes.independent_after();
+                    for (i, s) in scalar.iter().enumerate() {
+                        assert_eq!(pick[i].to_bits(), s.independent_after().to_bits(), "{kind} {pixel} {set} {i}");
                     }
                 }
             }

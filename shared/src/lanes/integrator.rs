@@ -284,8 +284,8 @@ fn trace_paths(
         let mut g = gather(scene, &triangles, alive);
         // The hit's barycentric weights, for its point, textures and vertex normals.
         let b = weights(hits.u, hits.v, hits.w);
-        // With kinds other than Lambertian, the materials with their textures looked up, for
-        // the BSDFs that run lane by lane (`Kinds`); a diffuse-only variant keeps none.
+        // Where some lanes shade through the scalar functions (`kinds`), the materials with
+        // their textures looked up, for `Kinds`; other variants keep none.
         let mut resolved = [Material::default(); LANES];
         let mut textured = [false; LANES];
         if v.has(FEATURE_TEXTURES) & !scene.textures.is_empty() {
@@ -404,7 +404,8 @@ fn trace_paths(
             );
         }
 
-        // The Lambertian BSDF sample (`material::diffuse::sample`); no lobe to pick.
+        // The Lambertian BSDF sample (`material::diffuse::sample`) on every lane; no lobe to
+        // pick.
         let local = cosine_hemisphere(ub1, ub2);
         let (tb, bb) = orthonormal_basis(ns);
         let mut wi = tb.scale(local.x) + bb.scale(local.y) + ns.scale(local.z);
@@ -469,8 +470,9 @@ impl Sides {
     }
 }
 
-/// The live lanes' materials in a variant with kinds other than Lambertian: the material each
-/// lane's BSDF sees (its textures looked up), the lanes whose kind is not Lambertian (their
+/// The live lanes' materials where some lanes shade through the scalar integrator's functions
+/// (material kinds other than Lambertian, the environment map, punctual lights): the material
+/// each lane's BSDF sees (its textures looked up), the lanes whose kind is not Lambertian (their
 /// BSDFs run lane by lane through `material`, the Lambertian lanes on all lanes at once), and
 /// those whose every lobe is a delta (no light sample), with the vertex's `wo` and sides.
 struct Kinds<'a> {
@@ -490,9 +492,11 @@ impl<'a> Kinds<'a> {
     }
 }
 
-/// Next-event estimation toward emitting triangles (`shade_vertex`'s light sample) for the
-/// live lanes: a light picked per lane, a point on it, the shadow rays one by one, the
-/// unblocked lanes' MIS-weighted contributions added to `radiance`.
+/// Next-event estimation (`shade_vertex`'s light sample) for the live lanes: a light picked per
+/// lane; on an emitting triangle a point on it, the shadow rays one by one (or by brute force),
+/// the unblocked lanes' MIS-weighted contributions added to `radiance`, each lane's BSDF value
+/// from `kinds` where its kind is not Lambertian; the environment map and punctual lights lane
+/// by lane (`integrator::sample_other_light`, given `kinds`).
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn next_event(

@@ -142,14 +142,7 @@ fn trace_path<R: Recorder>(
             if v.has(FEATURE_ENVIRONMENT_MAP) & (p.environment_map != NO_ENVIRONMENT_MAP) {
                 // The map, MIS-weighted against its sampling by next-event estimation (the
                 // camera ray and a delta BSDF's ray take it whole).
-                let o = p.environment_map - 1;
-                let le = environment::eval(scene.textures, o, path.dir);
-                let mut weight = 1.0;
-                if path.bounce > 0 {
-                    let light_pdf =
-                        environment::selection_pmf(scene.textures, o) * environment::pdf(scene.textures, o, path.dir);
-                    weight = power_heuristic(path.bsdf_pdf, light_pdf);
-                }
+                let (le, weight) = map_seen(scene, p.environment_map - 1, path.dir, path.bounce, path.bsdf_pdf);
                 let added = path.beta * le * weight;
                 path.radiance += added;
                 rec.escaped(added);
@@ -165,6 +158,35 @@ fn trace_path<R: Recorder>(
         }
     }
     PathSample { radiance: path.radiance, primary }
+}
+
+/// The environment map (at `o` in the texture words) seen by a ray leaving the scene along
+/// `dir`: its radiance and the MIS weight against its sampling by next-event estimation (one
+/// for the camera ray, `bounce` 0, and for a delta BSDF's ray, whose `bsdf_pdf` takes it whole).
+/// Also the lane integrator's, lane by lane.
+#[inline(always)]
+pub(crate) fn map_seen(scene: &SceneView, o: u32, dir: Vec3, bounce: u32, bsdf_pdf: f32) -> (Vec3, f32) {
+    let le = environment::eval(scene.textures, o, dir);
+    let mut weight = 1.0;
+    if bounce > 0 {
+        let light_pdf = environment::selection_pmf(scene.textures, o) * environment::pdf(scene.textures, o, dir);
+        weight = power_heuristic(bsdf_pdf, light_pdf);
+    }
+    (le, weight)
+}
+
+/// What a ray that reached a surface of material `mat` from behind (geometric normal `ng`,
+/// direction `dir`, distance `t` in units of `dir`) keeps of its throughput after crossing the
+/// medium inside: e^(−σ·distance) per channel for an absorbing medium (KHR_materials_volume),
+/// one otherwise (an exact factor). Also the lane integrator's, lane by lane.
+#[inline(always)]
+pub(crate) fn medium_transmittance(v: Variant, mat: &crate::layout::Material, ng: Vec3, dir: Vec3, t: f32) -> Vec3 {
+    let sigma = absorption(v, mat);
+    if ((sigma.x > 0.0) | (sigma.y > 0.0) | (sigma.z > 0.0)) && dot(ng, dir) > 0.0 {
+        let d = t * length(dir);
+        return Vec3::new(exp_neg(-sigma.x * d), exp_neg(-sigma.y * d), exp_neg(-sigma.z * d));
+    }
+    Vec3::ONE
 }
 
 /// The shading normal `n` turned toward the side the ray (direction `dir`) arrived from, and
@@ -240,13 +262,7 @@ fn shade_vertex<R: Recorder>(
         });
     }
 
-    // A ray that reaches a surface from behind travelled inside it: an absorbing medium
-    // (KHR_materials_volume) takes its share, e^(−σ·distance) per channel.
-    let sigma = absorption(v, mat);
-    if ((sigma.x > 0.0) | (sigma.y > 0.0) | (sigma.z > 0.0)) && dot(ng, dir) > 0.0 {
-        let d = hit.t * length(dir);
-        path.beta *= Vec3::new(exp_neg(-sigma.x * d), exp_neg(-sigma.y * d), exp_neg(-sigma.z * d));
-    }
+    path.beta *= medium_transmittance(v, mat, ng, dir, hit.t);
 
     // Only emitters emit, and every emitter is in the light table.
     let le = if v.has(FEATURE_EMITTERS) { emitted(mat, ng, dir) } else { Vec3::ZERO };
@@ -555,31 +571,14 @@ pub fn render_samples(
     *sum_sq = acc_sq;
 }
 
-/// `render_samples` compiled for the feature set `F`: a CPU variant, monomorphised, so what `F`
-/// leaves out is not in its code. `F = FEATURES_ALL` is the generic code.
+/// `render_samples` compiled for the feature set `F` (a CPU variant, monomorphised, so what `F`
+/// leaves out is not in its code; `F = FEATURES_ALL` is the generic code), with the sums cut into
+/// runs of `per` samples: sample `start + i` is added to `sum[i / per]` and `sum_sq[i / per]`,
+/// each run in sample order, so each run's sums are the ones a call for that run alone adds. The
+/// CPU renders two blocks of samples in one call this way (`lanes::integrator`, whose sixteen
+/// lanes two blocks of eight fill) and keeps each block's sums apart. `per` 0 counts as 1.
 /// Inlined whole into its callers, so that a caller compiled for more instructions (the CPU's
 /// AVX-512 copies) compiles all of it, traversal included, for them.
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-pub fn render_samples_for<const F: u32>(
-    scene: &SceneView,
-    p: &RenderParams,
-    x: u32,
-    y: u32,
-    start: u32,
-    count: u32,
-    sum: &mut Vec4,
-    sum_sq: &mut Vec4,
-    primary: &mut u32,
-) {
-    render_samples(scene, p, Variant::new(F, p), x, y, start, count, sum, sum_sq, primary);
-}
-
-/// `render_samples_for::<F>` with the sums cut into runs of `per` samples: sample `start + i` is
-/// added to `sum[i / per]` and `sum_sq[i / per]`, each run in sample order, so each run's sums are
-/// the ones a call for that run alone adds. The CPU renders two blocks of samples in one call
-/// this way (`lanes::integrator`, whose sixteen lanes two blocks of eight fill) and keeps each
-/// block's sums apart. `per` 0 counts as 1.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 pub fn render_runs_for<const F: u32>(
@@ -599,7 +598,7 @@ pub fn render_runs_for<const F: u32>(
     let mut run = 0;
     while s < end {
         let n = (end - s).min(per);
-        render_samples_for::<F>(scene, p, x, y, s, n, &mut sum[run], &mut sum_sq[run], primary);
+        render_samples(scene, p, Variant::new(F, p), x, y, s, n, &mut sum[run], &mut sum_sq[run], primary);
         s += n;
         run += 1;
     }

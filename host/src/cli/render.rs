@@ -340,7 +340,7 @@ pub fn run(r: RenderArgs) -> Result<ExitCode> {
                 if matches!(devices, Devices::One(Device::Cpu)) && s.specialize {
                     f.variant_bits = crate::render::cpu::cpu_variant_bits(f.bits);
                 }
-                f.lanes = matches!(devices, Devices::One(Device::Cpu)) && crate::render::cpu::runs_lanes(c, &s);
+                f.lanes = matches!(devices, Devices::One(Device::Cpu)) && crate::render::cpu::runs_lanes(&s);
                 f
             },
             mean_nodes: cost_mean(0),

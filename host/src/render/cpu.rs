@@ -61,18 +61,18 @@ variants!(
     4072 4073 4074 4075 4076 4077 4078 4079 4088 4089 4090 4091 4092 4093 4094 16383
 );
 
-/// Where the CPU's variant for feature bits `bits` sits in `LANE_VARIANTS`, unless the render is
-/// not specialised (`--specialize off` runs the scalar integrator's generic code, the reference
-/// every variant is tested against) or `KDTRACE_CPU_LANES=off` asks for the scalar integrator
-/// (to compare the two).
-fn lane_variant_index(bits: u32, specialize: bool) -> Option<usize> {
-    (specialize && std::env::var("KDTRACE_CPU_LANES").as_deref() != Ok("off")).then(|| variant_index(bits))
+/// Whether the CPU's variant comes from `LANE_VARIANTS`: unless the render is not specialised
+/// (`--specialize off` runs the scalar integrator's generic code, the reference every variant is
+/// tested against) or `KDTRACE_CPU_LANES=off` asks for the scalar integrator (to compare the
+/// two).
+fn lanes(specialize: bool) -> bool {
+    specialize && std::env::var("KDTRACE_CPU_LANES").as_deref() != Ok("off")
 }
 
-/// Whether the CPU renders `c` with `s` through the lane integrator: the radiance image with
-/// the lanes' variant (`lane_variant_index`; an AOV runs the scalar integrator).
-pub fn runs_lanes(c: &Compiled, s: &RenderSettings) -> bool {
-    (s.aov == Aov::Radiance) && lane_variant_index(crate::render::features::variant_bits(c, s), s.specialize).is_some()
+/// Whether the CPU renders with `s` through the lane integrator: the radiance image with the
+/// lanes' variant (`lanes`; an AOV runs the scalar integrator).
+pub fn runs_lanes(s: &RenderSettings) -> bool {
+    (s.aov == Aov::Radiance) && lanes(s.specialize)
 }
 
 /// The feature bits the CPU compiles a variant for, covering `bits`: the bits outside the
@@ -130,17 +130,14 @@ fn variant_rendering(c: &Compiled, s: &RenderSettings) -> VariantFn {
 
 /// `variant` compiled for `isa`; `Isa::Avx512` only where the CPU has it (`Isa::detect`).
 fn variant_for(bits: u32, specialize: bool, isa: Isa) -> VariantFn {
-    if let Some(i) = lane_variant_index(bits, specialize) {
-        return match isa {
-            Isa::Baseline => LANE_VARIANTS[i],
-            #[cfg(target_arch = "x86_64")]
-            Isa::Avx512 => LANE_VARIANTS_AVX512[i],
-        };
-    }
+    let (i, lanes) = (variant_index(bits), lanes(specialize));
     match isa {
-        Isa::Baseline => VARIANTS[variant_index(bits)],
+        Isa::Baseline if lanes => LANE_VARIANTS[i],
+        Isa::Baseline => VARIANTS[i],
         #[cfg(target_arch = "x86_64")]
-        Isa::Avx512 => VARIANTS_AVX512[variant_index(bits)],
+        Isa::Avx512 if lanes => LANE_VARIANTS_AVX512[i],
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx512 => VARIANTS_AVX512[i],
     }
 }
 

@@ -20,30 +20,27 @@ use super::warp::{
     weights, Triangles,
 };
 use super::{brute, sqrt, Hits, F, LANES, M, U, V3};
-use crate::environment;
-use crate::exp::exp_neg;
 use crate::features::{
     Variant, FEATURES_ALL, FEATURE_DIFFUSE, FEATURE_EMITTERS, FEATURE_ENVIRONMENT, FEATURE_ENVIRONMENT_MAP,
     FEATURE_INDIRECT, FEATURE_MANY_EMITTERS, FEATURE_MATERIALS, FEATURE_PRINCIPLED, FEATURE_PUNCTUAL, FEATURE_TEXTURES,
     FEATURE_VERTEX_NORMALS,
 };
 use crate::glam::{Vec3, Vec4};
-use crate::integrator::{sample_other_light, RR_MAX_SURVIVAL, SHADOW_EPSILON};
+use crate::integrator::{map_seen, medium_transmittance, sample_other_light, RR_MAX_SURVIVAL, SHADOW_EPSILON};
 use crate::kdtree::Hit;
 use crate::layout::{
     Material, RenderParams, AOV_RADIANCE, LIGHT_NOT_TRIANGLE, MATERIAL_DIFFUSE, NO_ENVIRONMENT_MAP, NO_HIT, NO_LIGHT,
     TRAVERSAL_WIDE_BVH,
 };
-use crate::material::{absorption, eval, is_delta, picks_lobe, sample as sample_bsdf, transmits};
+use crate::material::{eval, is_delta, picks_lobe, sample as sample_bsdf, transmits};
 use crate::numerics::sanitize;
 use crate::raycast::query;
 use crate::record::NoRecord;
 use crate::rng::PixelSeeds;
-use crate::sampling::power_heuristic as power_heuristic_one;
 use crate::sampling::{remap_in_light, select_light, INV_PI};
 use crate::scene::SceneView;
 use crate::surface::{emission_at, looks_up_textures, resolve, shading_normal};
-use crate::vecmath::{dot, length, xyz};
+use crate::vecmath::{dot, xyz};
 use core::simd::cmp::{SimdPartialEq, SimdPartialOrd};
 use core::simd::num::SimdFloat;
 use core::simd::Select;
@@ -253,17 +250,9 @@ fn trace_paths(
         let escaped = alive & !hit;
         if v.has(FEATURE_ENVIRONMENT_MAP) & (p.environment_map != NO_ENVIRONMENT_MAP) {
             // The map, MIS-weighted against its light samples (`trace_path`), lane by lane.
-            let o = p.environment_map - 1;
             for i in 0..LANES {
                 if escaped.test(i) {
-                    let d = dir.lane(i);
-                    let le = environment::eval(scene.textures, o, d);
-                    let mut weight = 1.0;
-                    if bounce > 0 {
-                        let light_pdf =
-                            environment::selection_pmf(scene.textures, o) * environment::pdf(scene.textures, o, d);
-                        weight = power_heuristic_one(bsdf_pdf[i], light_pdf);
-                    }
+                    let (le, weight) = map_seen(scene, p.environment_map - 1, dir.lane(i), bounce, bsdf_pdf[i]);
                     let sum = radiance.lane(i) + beta.lane(i) * le * weight;
                     (radiance.x[i], radiance.y[i], radiance.z[i]) = (sum.x, sum.y, sum.z);
                 }
@@ -330,14 +319,8 @@ fn trace_paths(
                 if !alive.test(i) {
                     continue;
                 }
-                let sigma = absorption(v, k.mats[i]);
-                let d = dir.lane(i);
-                if ((sigma.x > 0.0) | (sigma.y > 0.0) | (sigma.z > 0.0)) && dot(ng.lane(i), d) > 0.0 {
-                    let d = t[i] * length(d);
-                    beta.x[i] *= exp_neg(-sigma.x * d);
-                    beta.y[i] *= exp_neg(-sigma.y * d);
-                    beta.z[i] *= exp_neg(-sigma.z * d);
-                }
+                let keep = medium_transmittance(v, k.mats[i], ng.lane(i), dir.lane(i), t[i]);
+                (beta.x[i], beta.y[i], beta.z[i]) = (beta.x[i] * keep.x, beta.y[i] * keep.y, beta.z[i] * keep.z);
             }
         }
 
@@ -535,32 +518,26 @@ fn next_event(
                 // The environment map or a punctual light: the scalar integrator's sample.
                 on_triangle.set(i, false);
                 let mut sum = radiance.lane(i);
-                let (m, front) = (k.mats[i], k.front.test(i));
-                let (p_i, s_i, n_i, w_i) = (pos.lane(i), spawn.lane(i), nf.lane(i), k.wo.lane(i));
-                let e = Vec3::splat(error[i]);
-                let (kind, u) = (light.triangle, u_light[i]);
-                let mut rec = NoRecord;
-                let b = beta.lane(i);
                 sample_other_light(
                     scene,
                     p,
                     v,
-                    b,
+                    beta.lane(i),
                     &mut sum,
-                    m,
-                    kind,
+                    k.mats[i],
+                    light.triangle,
                     light.pmf,
                     index,
-                    p_i,
-                    s_i,
-                    e,
-                    n_i,
+                    pos.lane(i),
+                    spawn.lane(i),
+                    Vec3::splat(error[i]),
+                    nf.lane(i),
                     ns.lane(i),
-                    w_i,
-                    front,
+                    k.wo.lane(i),
+                    k.front.test(i),
                     u1[i],
-                    u,
-                    &mut rec,
+                    u_light[i],
+                    &mut NoRecord,
                 );
                 (radiance.x[i], radiance.y[i], radiance.z[i]) = (sum.x, sum.y, sum.z);
             }

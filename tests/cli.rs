@@ -333,8 +333,9 @@ fn cpu_instruction_sets_render_the_same_image() {
 /// Russian roulette and the sampler's independent sets, both samplers, sample counts that leave
 /// a group part-filled, adaptive sampling's uneven counts, and every material kind: rough and
 /// smooth glass, rough plastic, a rough conductor, MTL mirrors and glass, and glTF principled
-/// materials with textures, masks and transmission; an environment map and punctual lights.
-/// `render --json` says which ran. (Absorbing media: `tests/gltf_lights_and_media.rs`, against
+/// materials with textures, masks and transmission; an environment map and punctual lights; a
+/// mesh in a box, whose walls the lanes test apart (`lanes::split`). `render --json` says which
+/// ran. (Absorbing media: `tests/gltf_lights_and_media.rs`, against
 /// lavapipe.)
 #[test]
 fn lane_integrator_renders_the_scalar_image() {
@@ -366,7 +367,19 @@ intensity = 2
     );
     std::fs::write(&lights, toml).unwrap();
     let lights = lights.to_string_lossy().into_owned();
-    let cases: [(&str, &[&str]); 16] = [
+    // A bunny of 3,674 triangles in the Cornell box: the lanes test the box's walls sixteen rays
+    // at a time and traverse a BVH over the rest (`lanes::split`).
+    let boxed = tmp("lanes-split.toml");
+    let bunny = repo("tests/data/meshes/bunny-npm/bunny.obj");
+    std::fs::write(
+        &boxed,
+        format!(
+            "[[mesh]]\nfile = {mesh:?}\n[[mesh]]\nfile = {bunny:?}\nscale = 0.02\ntranslate = [0.28, 0.0, -0.28]\n"
+        ),
+    )
+    .unwrap();
+    let boxed = boxed.to_string_lossy().into_owned();
+    let cases: [(&str, &[&str]); 17] = [
         ("scenes/cornell-box.obj", &["--spp", "21", "--bounces", "6"]),
         ("scenes/cornell-box.obj", &["--spp", "16", "--bounces", "0", "--sampler", "independent"]),
         ("scenes/bunny.toml", &["--spp", "9", "--bounces", "3", "--seed", "7"]),
@@ -399,6 +412,7 @@ intensity = 2
         ("tests/data/environment/sky-scene.toml", &["--spp", "24", "--bounces", "6"]),
         ("tests/data/gltf/EmissiveStrengthTest/EmissiveStrengthTest.gltf", &["--spp", "16", "--bounces", "4"]),
         (&lights, &["--spp", "20", "--bounces", "5"]),
+        (&boxed, &["--spp", "19", "--bounces", "6"]),
     ];
     for (k, (scene, extra)) in cases.iter().enumerate() {
         let mut images = Vec::new();
@@ -414,6 +428,9 @@ intensity = 2
             assert!(o.status.success(), "{scene} {extra:?}: {}", stderr(&o));
             let line: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
             assert_eq!(line["features"]["lanes"], lanes, "{scene} {extra:?}: {line}");
+            if *scene == boxed {
+                assert!(line["wide_bvh"]["split_large"].as_u64().unwrap() > 0, "no split: {line}");
+            }
             let (_, _, px) = kdtrace::image::io::read_exr(&out).unwrap();
             images.push(px);
         }

@@ -32,6 +32,10 @@ pub struct SceneView<'a> {
     /// built one.
     #[cfg(not(target_arch = "spirv"))]
     pub wide: WideView<'a>,
+    /// The CPU lanes' split of the same triangles into a few large ones and a BVH over the rest
+    /// (`lanes::split`); empty unless the host chose one.
+    #[cfg(not(target_arch = "spirv"))]
+    pub split: SplitView<'a>,
 }
 
 impl<'a> SceneView<'a> {
@@ -66,6 +70,8 @@ impl<'a> SceneView<'a> {
             bounds_max: xyz(params.bounds_max),
             #[cfg(not(target_arch = "spirv"))]
             wide: WideView::default(),
+            #[cfg(not(target_arch = "spirv"))]
+            split: SplitView::default(),
         }
     }
 }
@@ -79,4 +85,19 @@ pub struct WideView<'a> {
     pub nodes: &'a [crate::layout::WideNode],
     pub blocks: &'a [TriBlock],
     pub indices: &'a [u32],
+}
+
+/// The scene's triangles in two parts, for the CPU's lane integrator (`lanes::split`): a few
+/// large ones (`large`, copies of the triangles `large_ids` names, ids ascending) that sixteen
+/// rays test at once, and a wide BVH over all the others (`rest`) whose box, `rest_min` to
+/// `rest_max`, a ray must enter before it is traversed. Empty (no large triangles) where the
+/// host found no split worth it.
+#[cfg(not(target_arch = "spirv"))]
+#[derive(Clone, Copy, Default)]
+pub struct SplitView<'a> {
+    pub large: &'a [Triangle],
+    pub large_ids: &'a [u32],
+    pub rest: WideView<'a>,
+    pub rest_min: Vec3,
+    pub rest_max: Vec3,
 }

@@ -21,7 +21,7 @@ use crate::glam::Vec3;
 use crate::kdtree::{safe_reciprocal, test_block_run, usable_direction, Hit};
 use crate::layout::{WideNode, WIDE_LEAF_BIT as LEAF_BIT, WIDE_MAX_DEPTH as MAX_DEPTH, WIDE_WIDTH as WIDTH};
 use crate::numerics::T_SLACK;
-use crate::scene::SceneView;
+use crate::scene::{SceneView, WideView};
 use crate::triangle::RayShear;
 use crate::vecmath::axis;
 use core::mem::MaybeUninit;
@@ -57,25 +57,26 @@ struct Entry {
 #[inline(always)]
 pub fn traverse(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32, any_hit: bool) -> Hit {
     if scene.alpha_masks {
-        traverse_from::<true>(scene, 0, origin, dir, Hit::miss(t_max), any_hit)
+        traverse_from::<true>(scene, scene.wide, 0, origin, dir, Hit::miss(t_max), any_hit)
     } else {
-        traverse_from::<false>(scene, 0, origin, dir, Hit::miss(t_max), any_hit)
+        traverse_from::<false>(scene, scene.wide, 0, origin, dir, Hit::miss(t_max), any_hit)
     }
 }
 
 /// The traversal of the subtree under `root` (a node or leaf reference; 0 is the whole tree)
-/// for a ray whose closest hit so far is `best`: a hit in the subtree replaces it where
-/// `traverse` would. `nodes` and `tests` count this subtree's work alone.
+/// of `tree` (the scene's, or another over some of its triangles) for a ray whose closest hit
+/// so far is `best`: a hit in the subtree replaces it where `traverse` would. `nodes` and
+/// `tests` count this subtree's work alone.
 #[inline(always)]
 pub(crate) fn traverse_from<const MASKS: bool>(
     scene: &SceneView,
+    tree: WideView,
     root: u32,
     origin: Vec3,
     dir: Vec3,
     mut best: Hit,
     any_hit: bool,
 ) -> Hit {
-    let tree = scene.wide;
     if tree.nodes.is_empty() {
         return best;
     }

@@ -158,7 +158,7 @@ fn traverse_with<const MASKS: bool>(
             while left != 0 {
                 let i = left.trailing_zeros() as usize;
                 left &= left - 1;
-                let h = wide_bvh::traverse_from::<MASKS>(scene, child, origin[i], dir[i], best[i], any_hit);
+                let h = wide_bvh::traverse_from::<MASKS>(scene, scene.wide, child, origin[i], dir[i], best[i], any_hit);
                 tests[i] += h.tests;
                 nodes[i] += h.nodes;
                 if any_hit & h.is_hit() {

@@ -7,6 +7,7 @@
 mod binned;
 mod reference;
 mod spatial;
+pub mod split;
 
 use binned::{Kind, Node2};
 use rayon::prelude::*;

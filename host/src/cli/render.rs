@@ -165,6 +165,9 @@ struct WideBvhReport {
     references: usize,
     /// Levels of nodes on the longest path.
     depth: usize,
+    /// The large triangles the CPU lanes test sixteen rays at a time, outside this tree's copy
+    /// over the rest (`bvh::split`); 0 where the scene is not split.
+    split_large: usize,
 }
 
 pub fn run(r: RenderArgs) -> Result<ExitCode> {
@@ -331,6 +334,7 @@ pub fn run(r: RenderArgs) -> Result<ExitCode> {
                 leaves: b.blocks.len(),
                 references: b.references,
                 depth: b.depth(),
+                split_large: c.split.get().and_then(|s| s.as_ref()).map_or(0, |s| s.large_ids.len()),
             }),
             dispatch: s.dispatch,
             aov: s.aov,

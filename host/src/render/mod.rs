@@ -63,6 +63,9 @@ pub struct Compiled {
     /// The CPU path's eight-wide BVH over the same triangles (`crate::bvh`), built when a view
     /// for `TRAVERSAL_WIDE_BVH` first asks for it (a GPU render never does).
     pub wide: std::sync::OnceLock<crate::bvh::WideBvh>,
+    /// The CPU lanes' split of the triangles (`crate::bvh::split`), chosen with the wide BVH;
+    /// `None` where none pays or the scene has alpha masks.
+    pub split: std::sync::OnceLock<Option<crate::bvh::split::Split>>,
 }
 
 /// The k-d tree with the triangles of its leaves in blocks of `BLOCK_WIDTH`, for the CPU's SIMD
@@ -120,6 +123,7 @@ impl Compiled {
             origin: DVec3::ZERO,
             alpha_masks,
             wide: std::sync::OnceLock::new(),
+            split: std::sync::OnceLock::new(),
         };
         c.prepare_emitters();
         c
@@ -282,7 +286,23 @@ impl Compiled {
 
     /// The wide BVH, built on the first call.
     pub fn wide_bvh(&self) -> &crate::bvh::WideBvh {
-        self.wide.get_or_init(|| crate::bvh::build(&self.scene.triangles))
+        if let Some(w) = self.wide.get() {
+            return w;
+        }
+        let (w, split) = rayon::join(
+            || crate::bvh::build(&self.scene.triangles),
+            || {
+                // `KDTRACE_CPU_SPLIT=off` keeps one BVH for every ray (to compare the two).
+                let off = std::env::var("KDTRACE_CPU_SPLIT").as_deref() == Ok("off");
+                if self.alpha_masks || off {
+                    None
+                } else {
+                    crate::bvh::split::choose(&self.scene.triangles)
+                }
+            },
+        );
+        let _ = self.split.set(split);
+        self.wide.get_or_init(|| w)
     }
 
     pub fn view<'a>(&'a self, params: &RenderParams) -> SceneView<'a> {
@@ -311,6 +331,9 @@ impl Compiled {
         // Ray batches name their traversal per ray: a built BVH is always in the view.
         if let Some(wide) = self.wide.get() {
             view.wide = wide.view();
+        }
+        if let Some(Some(split)) = self.split.get() {
+            view.split = split.view();
         }
         view
     }

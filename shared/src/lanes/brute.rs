@@ -82,9 +82,11 @@ fn shear(origin: V3, dir: V3) -> Shear {
 }
 
 /// The closest hit in (0, t_max) among `triangles` of each live lane's ray, or with `any_hit`
-/// whether there is one (the triangle of some hit: the lowest id that hits).
+/// whether there is one (the triangle of some hit: the lowest id that hits). A triangle's id is
+/// its position, or where `ids` is not empty the entry of `ids` there (ascending, so that the
+/// tie rule still keeps the lowest id).
 #[inline(always)]
-pub fn cast(triangles: &[Triangle], origin: V3, dir: V3, t_max: F, live: M, any_hit: bool) -> Hits {
+pub fn cast(triangles: &[Triangle], ids: &[u32], origin: V3, dir: V3, t_max: F, live: M, any_hit: bool) -> Hits {
     let s = shear(origin, dir);
     let zero = F::splat(0.0);
     let mut open = live & s.usable;
@@ -116,7 +118,8 @@ pub fn cast(triangles: &[Triangle], origin: V3, dir: V3, t_max: F, live: M, any_
         }
         let t = (u * (s.sz * akz) + v * (s.sz * bkz) + w * (s.sz * ckz)) / det;
         let hit = inside & t.simd_gt(zero) & t.simd_lt(best.t);
-        best.triangle = hit.select(U::splat(id as u32), best.triangle);
+        let id = if ids.is_empty() { id as u32 } else { ids[id] };
+        best.triangle = hit.select(U::splat(id), best.triangle);
         best.t = hit.select(t, best.t);
         best.u = hit.select(u, best.u);
         best.v = hit.select(v, best.v);
@@ -225,7 +228,7 @@ mod tests {
             let t_max = F::from_array(core::array::from_fn(|i| if i % 4 == 0 { 0.7 } else { f32::MAX }));
             let live = M::from_array(core::array::from_fn(|i| !(i + round as usize).is_multiple_of(9)));
             for any_hit in [false, true] {
-                let h = cast(&tris, o, d, t_max, live, any_hit);
+                let h = cast(&tris, &[], o, d, t_max, live, any_hit);
                 let (os, ds) = (lanes_of(o), lanes_of(d));
                 for i in 0..LANES {
                     let want = if live.test(i) {

@@ -19,7 +19,7 @@ use super::warp::{
     cosine_hemisphere, offset_ray_origin, orthonormal_basis, power_heuristic, primary_direction, uniform_triangle,
     weights, Triangles,
 };
-use super::{brute, sqrt, Hits, F, LANES, M, U, V3};
+use super::{brute, split, sqrt, Hits, F, LANES, M, U, V3};
 use crate::features::{
     Variant, FEATURES_ALL, FEATURE_DIFFUSE, FEATURE_EMITTERS, FEATURE_ENVIRONMENT, FEATURE_ENVIRONMENT_MAP,
     FEATURE_INDIRECT, FEATURE_MANY_EMITTERS, FEATURE_MATERIALS, FEATURE_PRINCIPLED, FEATURE_PUNCTUAL, FEATURE_TEXTURES,
@@ -126,13 +126,17 @@ fn brute_force(scene: &SceneView, p: &RenderParams, live: M) -> bool {
 #[inline(always)]
 fn trace_closest(scene: &SceneView, p: &RenderParams, origin: V3, dir: V3, live: M, packet: bool) -> Hits {
     if brute_force(scene, p, live) {
-        return brute::cast(scene.triangles, origin, dir, F::splat(f32::MAX), live, false);
+        return brute::cast(scene.triangles, &[], origin, dir, F::splat(f32::MAX), live, false);
+    }
+    let packet = packet & live.all() & (p.traversal == TRAVERSAL_WIDE_BVH);
+    if split::applies(scene, p, live) {
+        return split::closest(scene, origin, dir, live);
     }
     let (mut triangle, mut t, mut u, mut v, mut w) =
         ([NO_HIT; LANES], [0.0; LANES], [0.0; LANES], [0.0; LANES], [0.0; LANES]);
     let mut put =
         |i: usize, hit: Hit| (triangle[i], t[i], u[i], v[i], w[i]) = (hit.triangle, hit.t, hit.u, hit.v, hit.w);
-    if packet & live.all() & (p.traversal == TRAVERSAL_WIDE_BVH) {
+    if packet {
         let o = core::array::from_fn(|i| origin.lane(i));
         let d = core::array::from_fn(|i| dir.lane(i));
         let hits = crate::wide_packet::traverse(scene, &o, &d, &[f32::MAX; LANES], LANES, false);
@@ -592,7 +596,9 @@ fn next_event(
     let shadow_dir = target - from;
     let unblocked = if brute_force(scene, p, valid) {
         let t_max = F::splat(1.0 - SHADOW_EPSILON);
-        brute::cast(scene.triangles, from, shadow_dir, t_max, valid, true).triangle.simd_eq(U::splat(NO_HIT))
+        brute::cast(scene.triangles, &[], from, shadow_dir, t_max, valid, true).triangle.simd_eq(U::splat(NO_HIT))
+    } else if split::applies(scene, p, valid) {
+        split::unblocked(scene, from, shadow_dir, F::splat(1.0 - SHADOW_EPSILON), valid)
     } else {
         let mut unblocked = [false; LANES];
         for (i, u) in unblocked.iter_mut().enumerate() {

@@ -23,6 +23,7 @@
 //! - `sampler`: the sampler's sets for sixteen samples (`rng::Sampler`, `sobol`).
 //! - `warp`: the camera, warps, hit points, ray offsets and the MIS weight.
 //! - `brute`: sixteen rays against every triangle of a small scene at once.
+//! - `split`: sixteen rays against a few large triangles at once, and a BVH over the others.
 //! - `integrator`: the path loop.
 use core::simd::cmp::SimdPartialOrd;
 use core::simd::{Mask, Select, Simd};
@@ -30,6 +31,7 @@ use core::simd::{Mask, Select, Simd};
 pub mod brute;
 pub mod integrator;
 pub mod sampler;
+pub mod split;
 pub mod warp;
 
 /// Samples a step takes at once: an AVX-512 register's f32 lanes.

@@ -7,6 +7,7 @@
 //! surface area heuristic's argument (Goldsmith & Salmon 1987; MacDonald & Booth 1990) a ray
 //! that crosses the scene's box meets a box inside it with a chance of the ratio of their
 //! areas. The k of least expected cost wins where it saves at least `MIN_GAIN` of a traversal.
+use super::reference::Aabb;
 use super::WideBvh;
 use shared::glam::Vec3;
 use shared::layout::Triangle;
@@ -46,24 +47,11 @@ impl Split {
     }
 }
 
-#[derive(Clone, Copy)]
-struct Bounds {
-    lo: Vec3,
-    hi: Vec3,
-}
-
-impl Bounds {
-    const EMPTY: Bounds = Bounds { lo: Vec3::splat(f32::INFINITY), hi: Vec3::splat(f32::NEG_INFINITY) };
-
-    fn grow(self, t: &Triangle) -> Bounds {
-        let (a, b, c) = (xyz(t.v0), xyz(t.v1), xyz(t.v2));
-        Bounds { lo: self.lo.min(a).min(b).min(c), hi: self.hi.max(a).max(b).max(c) }
-    }
-
-    fn area(self) -> f64 {
-        let d = (self.hi - self.lo).max(Vec3::ZERO).as_dvec3();
-        2.0 * (d.x * d.y + d.y * d.z + d.z * d.x)
-    }
+/// `b` grown by triangle `t`.
+fn grow(mut b: Aabb, t: &Triangle) -> Aabb {
+    let (a, v, c) = (xyz(t.v0), xyz(t.v1), xyz(t.v2));
+    b.grow(a.min(v).min(c), a.max(v).max(c));
+    b
 }
 
 fn area(t: &Triangle) -> f64 {
@@ -75,17 +63,17 @@ fn area(t: &Triangle) -> f64 {
 /// by the cost model; 0 for none.
 fn pick(triangles: &[Triangle], order: &[u32], k_max: usize) -> usize {
     // The box of all triangles but the first k of `order`, for k = k_max down to 0.
-    let mut rest = order[k_max..].iter().fold(Bounds::EMPTY, |b, &i| b.grow(&triangles[i as usize]));
+    let mut rest = order[k_max..].iter().fold(Aabb::EMPTY, |b, &i| grow(b, &triangles[i as usize]));
     let mut boxes = vec![rest; k_max + 1];
     for k in (0..k_max).rev() {
-        rest = rest.grow(&triangles[order[k] as usize]);
+        rest = grow(rest, &triangles[order[k] as usize]);
         boxes[k] = rest;
     }
-    let whole = boxes[0].area();
+    let whole = boxes[0].half_area() as f64;
     if !(whole > 0.0) {
         return 0;
     }
-    let cost = |k: usize| k as f64 / LARGE_PER_TRAVERSAL + boxes[k].area() / whole;
+    let cost = |k: usize| k as f64 / LARGE_PER_TRAVERSAL + boxes[k].half_area() as f64 / whole;
     let best = (1..=k_max).min_by(|&a, &b| cost(a).total_cmp(&cost(b))).unwrap_or(0);
     if best > 0 && cost(best) <= 1.0 - MIN_GAIN {
         best
@@ -116,7 +104,7 @@ pub fn choose(triangles: &[Triangle]) -> Option<Split> {
     let mut rest_ids = order[k..].to_vec();
     rest_ids.sort_unstable();
     let rest_tris: Vec<Triangle> = rest_ids.iter().map(|&i| triangles[i as usize]).collect();
-    let bounds = rest_tris.iter().fold(Bounds::EMPTY, |b, t| b.grow(t));
+    let bounds = rest_tris.iter().fold(Aabb::EMPTY, grow);
     let mut rest = super::build(&rest_tris);
     // The tree's ids are positions in `rest_tris`: back to the scene's, still ascending in each
     // leaf.

@@ -28,6 +28,12 @@ use core::simd::Select;
 /// 4% faster than brute force for any number of rays; uneven-noise's 18 did not tell them apart.
 pub const TRIANGLES_PER_RAY: usize = 6;
 
+/// Whether brute force over `triangles` pays for the live lanes' rays (`TRIANGLES_PER_RAY`).
+#[inline(always)]
+pub fn pays(triangles: usize, live: M) -> bool {
+    triangles <= live.to_bitmask().count_ones() as usize * TRIANGLES_PER_RAY
+}
+
 /// `x` where `k` is 0, `y` where 1, `z` where 2, lane by lane.
 #[inline(always)]
 fn pick(k0: M, k1: M, x: F, y: F, z: F) -> F {

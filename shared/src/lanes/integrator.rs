@@ -115,23 +115,21 @@ pub fn render_runs_for<const FEATURES: u32>(
 /// (`brute::TRIANGLES_PER_RAY`).
 #[inline(always)]
 fn brute_force(scene: &SceneView, p: &RenderParams, live: M) -> bool {
-    let rays = live.to_bitmask().count_ones() as usize;
-    (p.traversal == TRAVERSAL_WIDE_BVH)
-        & (scene.triangles.len() <= rays * brute::TRIANGLES_PER_RAY)
-        & !scene.alpha_masks
+    (p.traversal == TRAVERSAL_WIDE_BVH) & brute::pays(scene.triangles.len(), live) & !scene.alpha_masks
 }
 
-/// The closest hits of the live lanes' rays: by brute force in a small scene, else one by one
+/// The closest hits of the live lanes' rays: by brute force in a small scene, through the split
+/// (`split`) in a scene that has one, else one by one
 /// by the chosen traversal, a camera ray group of sixteen as one packet.
 #[inline(always)]
 fn trace_closest(scene: &SceneView, p: &RenderParams, origin: V3, dir: V3, live: M, packet: bool) -> Hits {
     if brute_force(scene, p, live) {
         return brute::cast(scene.triangles, &[], origin, dir, F::splat(f32::MAX), live, false);
     }
-    let packet = packet & live.all() & (p.traversal == TRAVERSAL_WIDE_BVH);
     if split::applies(scene, p, live) {
         return split::closest(scene, origin, dir, live);
     }
+    let packet = packet & live.all() & (p.traversal == TRAVERSAL_WIDE_BVH);
     let (mut triangle, mut t, mut u, mut v, mut w) =
         ([NO_HIT; LANES], [0.0; LANES], [0.0; LANES], [0.0; LANES], [0.0; LANES]);
     let mut put =

@@ -29,8 +29,7 @@ use core::simd::num::SimdFloat;
 #[inline(always)]
 pub fn applies(scene: &SceneView, p: &RenderParams, live: M) -> bool {
     let n = scene.split.large.len();
-    let rays = live.to_bitmask().count_ones() as usize;
-    (n != 0) & (p.traversal == TRAVERSAL_WIDE_BVH) & (n <= rays * brute::TRIANGLES_PER_RAY) & !scene.alpha_masks
+    (n != 0) & (p.traversal == TRAVERSAL_WIDE_BVH) & brute::pays(n, live) & !scene.alpha_masks
 }
 
 /// The lanes whose ray may enter the rest's box at a distance in [0, reach]. A lane whose slab

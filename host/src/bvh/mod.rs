@@ -59,18 +59,42 @@ pub fn build(triangles: &[Triangle]) -> WideBvh {
     if triangles.is_empty() {
         return WideBvh::default();
     }
-    let tris: Vec<[Vec3; 3]> = triangles.par_iter().map(|t| [xyz(t.v0), xyz(t.v1), xyz(t.v2)]).collect();
+    collapse(&binary(triangles, None), triangles)
+}
+
+/// The binary tree over `ids` of `triangles` (all of them for `None`), its leaves naming
+/// triangles by their ids in `triangles`.
+fn binary(triangles: &[Triangle], ids: Option<&[u32]>) -> Node2 {
+    let corners = |t: &Triangle| [xyz(t.v0), xyz(t.v1), xyz(t.v2)];
+    let tris: Vec<[Vec3; 3]> = match ids {
+        Some(ids) => ids.par_iter().map(|&i| corners(&triangles[i as usize])).collect(),
+        None => triangles.par_iter().map(corners).collect(),
+    };
     let budget = (binned::DUPLICATES * tris.len() as f32) as usize;
-    let root = binned::build_all(&tris, 0, budget);
+    let mut root = binned::build_all(&tris, 0, budget);
+    if let Some(ids) = ids {
+        fn rename(n: &mut Node2, ids: &[u32]) {
+            match &mut n.kind {
+                Kind::Leaf { ids: leaf } => leaf.iter_mut().for_each(|i| *i = ids[*i as usize]),
+                Kind::Inner(kids) => kids.iter_mut().for_each(|k| rename(k, ids)),
+            }
+        }
+        rename(&mut root, ids);
+    }
+    root
+}
+
+/// The wide tree collapsed from the binary tree `root` over `triangles`.
+fn collapse(root: &Node2, triangles: &[Triangle]) -> WideBvh {
     let mut out = WideBvh::default();
     let mut leaves = Vec::new();
     if let Kind::Leaf { .. } = root.kind {
         // A scene of one leaf: a root with one child.
         let mut n = WideNode::empty();
-        set_lane(&mut n, 0, &root, emit(&root, &mut out.nodes, &mut leaves));
+        set_lane(&mut n, 0, root, emit(root, &mut out.nodes, &mut leaves));
         out.nodes.push(n);
     } else {
-        emit(&root, &mut out.nodes, &mut leaves);
+        emit(root, &mut out.nodes, &mut leaves);
     }
     assert!(leaves.len() < MAX_BLOCKS as usize, "the wide BVH holds at most {MAX_BLOCKS} leaves");
     let width = BLOCK_WIDTH as usize;

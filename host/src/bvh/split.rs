@@ -7,8 +7,9 @@
 //! surface area heuristic's argument (Goldsmith & Salmon 1987; MacDonald & Booth 1990) a ray
 //! that crosses the scene's box meets a box inside it with a chance of the ratio of their
 //! areas. The k of least expected cost wins where it saves at least `MIN_GAIN` of a traversal.
+use super::binned::{Kind, Node2};
 use super::reference::Aabb;
-use super::WideBvh;
+use super::{binary, collapse, WideBvh};
 use shared::glam::Vec3;
 use shared::layout::Triangle;
 use shared::scene::SplitView;
@@ -82,9 +83,10 @@ fn pick(triangles: &[Triangle], order: &[u32], k_max: usize) -> usize {
     }
 }
 
-/// The split of `triangles` the cost model favours, or `None` where none pays (few triangles,
-/// which brute force takes whole, or no large ones around the rest).
-pub fn choose(triangles: &[Triangle]) -> Option<Split> {
+/// The large triangles the cost model favours taking out of `triangles` and the others, ids
+/// ascending in both; `None` where none pays (few triangles, which brute force takes whole, or
+/// no large ones around the rest).
+fn choose(triangles: &[Triangle]) -> Option<(Vec<u32>, Vec<u32>)> {
     if triangles.len() <= 4 * MAX_LARGE {
         return None;
     }
@@ -103,21 +105,46 @@ pub fn choose(triangles: &[Triangle]) -> Option<Split> {
     large_ids.sort_unstable();
     let mut rest_ids = order[k..].to_vec();
     rest_ids.sort_unstable();
-    let rest_tris: Vec<Triangle> = rest_ids.iter().map(|&i| triangles[i as usize]).collect();
-    let bounds = rest_tris.iter().fold(Aabb::EMPTY, grow);
-    let mut rest = super::build(&rest_tris);
-    // The tree's ids are positions in `rest_tris`: back to the scene's, still ascending in each
-    // leaf.
-    for id in &mut rest.indices {
-        *id = rest_ids[*id as usize];
+    Some((large_ids, rest_ids))
+}
+
+/// The wide BVH over all `triangles` and, where the cost model favours one, the split. With a
+/// split, both trees are collapsed from one build: the rest's binary tree, and for the whole
+/// BVH a root over it and a small tree of the large triangles.
+pub fn build(triangles: &[Triangle]) -> (WideBvh, Option<Split>) {
+    match choose(triangles) {
+        Some(ids) => {
+            let (whole, split) = split(triangles, ids, true);
+            (whole.expect("asked for"), Some(split))
+        }
+        None => (super::build(triangles), None),
     }
-    Some(Split {
+}
+
+/// The split alone, for a scene whose whole BVH was built already.
+pub fn build_split(triangles: &[Triangle]) -> Option<Split> {
+    choose(triangles).map(|ids| split(triangles, ids, false).1)
+}
+
+/// The split of `triangles` into `large_ids` and `rest_ids`, and with `whole` the whole BVH.
+fn split(triangles: &[Triangle], (large_ids, rest_ids): (Vec<u32>, Vec<u32>), whole: bool) -> (Option<WideBvh>, Split) {
+    let (rest_root, large_root) =
+        rayon::join(|| binary(triangles, Some(&rest_ids)), || whole.then(|| binary(triangles, Some(&large_ids))));
+    let rest = collapse(&rest_root, triangles);
+    let bounds = rest_ids.iter().fold(Aabb::EMPTY, |b, &i| grow(b, &triangles[i as usize]));
+    let whole = large_root.map(|large_root| {
+        let mut b = rest_root.bounds;
+        b.grow(large_root.bounds.lo, large_root.bounds.hi);
+        collapse(&Node2 { bounds: b, kind: Kind::Inner(Box::new([rest_root, large_root])) }, triangles)
+    });
+    let split = Split {
         large: large_ids.iter().map(|&i| triangles[i as usize]).collect(),
         large_ids,
         rest,
         rest_min: bounds.lo,
         rest_max: bounds.hi,
-    })
+    };
+    (whole, split)
 }
 
 #[cfg(test)]
@@ -153,7 +180,8 @@ mod tests {
     fn walls_around_a_small_mesh_are_taken_out() {
         let tris = walls_around_a_mesh();
         let walls = 400;
-        let s = choose(&tris).expect("a split");
+        let (_, s) = build(&tris);
+        let s = s.expect("a split");
         assert_eq!(s.large_ids, (walls..walls + 10).collect::<Vec<_>>());
         assert!(s.rest_min.cmpge(Vec3::splat(0.39)).all() && s.rest_max.cmple(Vec3::splat(0.62)).all());
         let mut ids: Vec<u32> = s.rest.indices.clone();
@@ -175,12 +203,14 @@ mod tests {
         // across the mesh.
         tris.push(tri([0.3, 0.3, 0.0], [0.7, 0.3, 0.0], [0.7, 0.7, 0.0]));
         tris.push(tri([0.45, 0.2, 0.45], [0.55, 0.8, 0.5], [0.5, 0.5, 0.55]));
-        let s = choose(&tris).expect("a split");
+        let (whole, s) = build(&tris);
+        let s = s.expect("a split");
         let info = vec![TriangleInfo::default(); tris.len()];
         let params = RenderParams { traversal: TRAVERSAL_WIDE_BVH, ..Default::default() };
         let mut view = SceneView::new(&params, &[], &[], &[], &tris, &info, &[], &[], &[], &[]);
         view.alpha_masks = false;
         view.split = s.view();
+        view.wide = whole.view();
         let mut x = 0x2545_f491u32;
         let mut r = || {
             x ^= x << 13;
@@ -209,6 +239,13 @@ mod tests {
                     [h.triangle[i], h.t[i].to_bits(), h.u[i].to_bits(), h.v[i].to_bits(), h.w[i].to_bits()]
                 };
                 assert_eq!(bits(&got), bits(&want), "round {round}, lane {i}");
+                // The whole BVH, collapsed from the same build, finds the same.
+                let w = shared::wide_bvh::traverse(&view, o.lane(i), d.lane(i), f32::MAX, false);
+                assert_eq!(
+                    [w.triangle, w.t.to_bits()],
+                    [want.triangle[i], want.t[i].to_bits()],
+                    "round {round}, lane {i}"
+                );
                 assert_eq!(open.test(i), blocked.triangle[i] == shared::layout::NO_HIT, "round {round}, lane {i}");
             }
         }
@@ -223,6 +260,6 @@ mod tests {
                 tri([x, y, x * y], [x + 0.03, y, x * y], [x, y + 0.03, x * y])
             })
             .collect();
-        assert!(choose(&tris).is_none());
+        assert!(build(&tris).1.is_none());
     }
 }

@@ -219,7 +219,9 @@ pub fn run(r: RenderArgs) -> Result<ExitCode> {
     if devices.any_gpu() || (devices.any_cpu() && !cpu_wide) || r.partial.is_some() {
         loaded.compiled.tree();
     }
-    if cpu_wide {
+    if cpu_wide && crate::render::cpu::runs_lanes(&s) {
+        loaded.compiled.wide_bvh_and_split();
+    } else if cpu_wide {
         loaded.compiled.wide_bvh();
     }
     loaded.build_s += t.elapsed().as_secs_f64();

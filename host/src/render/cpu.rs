@@ -297,6 +297,9 @@ mod avx512 {
 pub fn render(c: &Compiled, s: &RenderSettings, progress: Progress) -> Result<Rendered> {
     s.check()?;
     let s = &RenderSettings { traversal: s.traversal.for_cpu_path(), ..*s };
+    if s.traversal == crate::settings::Traversal::Wide && runs_lanes(s) {
+        c.wide_bvh_and_split();
+    }
     let (w, h) = (s.width, s.height);
     let n = (w * h) as usize;
     if let Some(a) = s.adaptive {

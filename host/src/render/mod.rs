@@ -63,8 +63,9 @@ pub struct Compiled {
     /// The CPU path's eight-wide BVH over the same triangles (`crate::bvh`), built when a view
     /// for `TRAVERSAL_WIDE_BVH` first asks for it (a GPU render never does).
     pub wide: std::sync::OnceLock<crate::bvh::WideBvh>,
-    /// The CPU lanes' split of the triangles (`crate::bvh::split`), chosen with the wide BVH;
-    /// `None` where none pays or the scene has alpha masks.
+    /// The CPU lanes' split of the triangles (`crate::bvh::split`), built with the wide BVH for
+    /// a render through the lanes (`wide_bvh_and_split`); `None` where none pays or the scene
+    /// has alpha masks.
     pub split: std::sync::OnceLock<Option<crate::bvh::split::Split>>,
 }
 
@@ -286,23 +287,31 @@ impl Compiled {
 
     /// The wide BVH, built on the first call.
     pub fn wide_bvh(&self) -> &crate::bvh::WideBvh {
-        if let Some(w) = self.wide.get() {
-            return w;
+        self.wide.get_or_init(|| crate::bvh::build(&self.scene.triangles))
+    }
+
+    /// The wide BVH and the CPU lanes' split, built on the first call: both from one build where
+    /// the BVH was not built yet. Only a render through the lanes asks for the split.
+    pub fn wide_bvh_and_split(&self) -> &crate::bvh::WideBvh {
+        use crate::bvh::split;
+        // `KDTRACE_CPU_SPLIT=off` keeps one BVH for every ray (to compare the two).
+        let off = std::env::var("KDTRACE_CPU_SPLIT").as_deref() == Ok("off");
+        if self.alpha_masks || off {
+            let _ = self.split.set(None);
         }
-        let (w, split) = rayon::join(
-            || crate::bvh::build(&self.scene.triangles),
-            || {
-                // `KDTRACE_CPU_SPLIT=off` keeps one BVH for every ray (to compare the two).
-                let off = std::env::var("KDTRACE_CPU_SPLIT").as_deref() == Ok("off");
-                if self.alpha_masks || off {
-                    None
-                } else {
-                    crate::bvh::split::choose(&self.scene.triangles)
+        if self.split.get().is_none() {
+            match self.wide.get() {
+                Some(_) => {
+                    let _ = self.split.set(split::build_split(&self.scene.triangles));
                 }
-            },
-        );
-        let _ = self.split.set(split);
-        self.wide.get_or_init(|| w)
+                None => {
+                    let (w, s) = split::build(&self.scene.triangles);
+                    let _ = self.split.set(s);
+                    let _ = self.wide.set(w);
+                }
+            }
+        }
+        self.wide_bvh()
     }
 
     pub fn view<'a>(&'a self, params: &RenderParams) -> SceneView<'a> {

@@ -13,11 +13,12 @@
 //! The hit is the whole BVH's bit for bit: the large triangles' closest hit (lowest id on a
 //! tie) is carried into the other BVH's traversal as the hit so far, which a triangle there
 //! replaces only where it is closer, or as close with a lower id (`kdtree::test_block_run`): brute
-//! force over all triangles. The box test skips only rays that cannot meet the box, which the
-//! host widened past any rounding of the test.
+//! force over all triangles. The box test skips only rays that cannot meet the box, whatever the
+//! rounding of its slab distances.
 use super::{brute, Hits, F, LANES, M, U, V3};
 use crate::kdtree::Hit;
 use crate::layout::{RenderParams, NO_HIT, TRAVERSAL_WIDE_BVH};
+use crate::numerics::T_SLACK;
 use crate::scene::{SceneView, SplitView};
 use crate::wide_bvh::traverse_from;
 use core::simd::cmp::{SimdPartialEq, SimdPartialOrd};
@@ -46,8 +47,10 @@ fn may_enter(s: &SplitView, origin: V3, dir: V3, reach: F) -> M {
     let (nx, fx, okx) = slab(s.rest_min.x, s.rest_max.x, origin.x, dir.x);
     let (ny, fy, oky) = slab(s.rest_min.y, s.rest_max.y, origin.y, dir.y);
     let (nz, fz, okz) = slab(s.rest_min.z, s.rest_max.z, origin.z, dir.z);
-    let t_in = nx.simd_max(ny).simd_max(nz);
-    let t_out = fx.simd_min(fy).simd_min(fz);
+    // Conservative as the BVH's own box test (`wide_bvh`): the exit widened and the entry
+    // lowered by `T_SLACK`, so a hit on the box's face or at the reach is never skipped.
+    let t_in = nx.simd_max(ny).simd_max(nz) * F::splat(1.0 - T_SLACK);
+    let t_out = fx.simd_min(fy).simd_min(fz) * F::splat(1.0 + T_SLACK);
     let outside = t_in.simd_gt(t_out) | t_out.simd_lt(F::splat(0.0)) | t_in.simd_gt(reach);
     !(okx & oky & okz & outside)
 }

@@ -45,8 +45,10 @@ pub enum Kind {
 }
 
 /// Builds the tree over all of `tris` (their ids are their positions) as if entered at `depth`;
-/// spatial splits may add at most `budget` references.
-pub fn build_all(tris: &[[Vec3; 3]], depth: u32, budget: usize) -> Node2 {
+/// spatial splits may add at most `budget` references. For triangles that are part of a scene,
+/// `scene_area` (the half area of the scene's box) sets where spatial splits are looked for, as
+/// in a tree over the whole scene; `None` takes their own box.
+pub fn build_in(tris: &[[Vec3; 3]], depth: u32, budget: usize, scene_area: Option<f32>) -> Node2 {
     use rayon::prelude::*;
     let refs: Vec<Ref> = tris
         .par_iter()
@@ -55,7 +57,8 @@ pub fn build_all(tris: &[[Vec3; 3]], depth: u32, budget: usize) -> Node2 {
         .collect();
     let mut root = Aabb::EMPTY;
     refs.iter().for_each(|r| root.grow(r.b.lo, r.b.hi));
-    build(&Input { tris, root_area: root.half_area() }, refs, depth, budget)
+    let root_area = scene_area.unwrap_or(root.half_area());
+    build(&Input { tris, root_area }, refs, depth, budget)
 }
 
 /// Builds the tree over `refs`; spatial splits may add at most `budget` references below.
@@ -236,7 +239,7 @@ mod tests {
             .collect();
         let balanced = (n as f32 / LEAF_SIZE as f32).log2().ceil() as u32 + 1;
         for start in [0, SAH_DEPTH] {
-            let root = build_all(&tris, start, 0);
+            let root = build_in(&tris, start, 0, None);
             let d = depth(&root);
             if start == 0 {
                 assert!(d > balanced + 4, "depth {d}: the heuristic did not chain, the test proves nothing");
@@ -280,7 +283,7 @@ mod tests {
             }
         }
         let budget = (DUPLICATES * tris.len() as f32) as usize;
-        let root = build_all(&tris, 0, budget);
+        let root = build_in(&tris, 0, budget, None);
         let mut runs = Vec::new();
         leaves(&root, &mut runs);
         let references: usize = runs.iter().map(|(ids, _)| ids.len()).sum();

@@ -59,19 +59,19 @@ pub fn build(triangles: &[Triangle]) -> WideBvh {
     if triangles.is_empty() {
         return WideBvh::default();
     }
-    collapse(&binary(triangles, None), triangles)
+    collapse(&binary(triangles, None, None), triangles)
 }
 
 /// The binary tree over `ids` of `triangles` (all of them for `None`), its leaves naming
-/// triangles by their ids in `triangles`.
-fn binary(triangles: &[Triangle], ids: Option<&[u32]>) -> Node2 {
+/// triangles by their ids in `triangles`; `scene_area` as in `binned::build_in`.
+fn binary(triangles: &[Triangle], ids: Option<&[u32]>, scene_area: Option<f32>) -> Node2 {
     let corners = |t: &Triangle| [xyz(t.v0), xyz(t.v1), xyz(t.v2)];
     let tris: Vec<[Vec3; 3]> = match ids {
         Some(ids) => ids.par_iter().map(|&i| corners(&triangles[i as usize])).collect(),
         None => triangles.par_iter().map(corners).collect(),
     };
     let budget = (binned::DUPLICATES * tris.len() as f32) as usize;
-    let mut root = binned::build_all(&tris, 0, budget);
+    let mut root = binned::build_in(&tris, 0, budget, scene_area);
     if let Some(ids) = ids {
         fn rename(n: &mut Node2, ids: &[u32]) {
             match &mut n.kind {

@@ -128,8 +128,12 @@ pub fn build_split(triangles: &[Triangle]) -> Option<Split> {
 
 /// The split of `triangles` into `large_ids` and `rest_ids`, and with `whole` the whole BVH.
 fn split(triangles: &[Triangle], (large_ids, rest_ids): (Vec<u32>, Vec<u32>), whole: bool) -> (Option<WideBvh>, Split) {
-    let (rest_root, large_root) =
-        rayon::join(|| binary(triangles, Some(&rest_ids)), || whole.then(|| binary(triangles, Some(&large_ids))));
+    // Spatial splits in the rest's tree are looked for as in a tree over the whole scene.
+    let scene_area = Some(triangles.iter().fold(Aabb::EMPTY, grow).half_area());
+    let (rest_root, large_root) = rayon::join(
+        || binary(triangles, Some(&rest_ids), scene_area),
+        || whole.then(|| binary(triangles, Some(&large_ids), scene_area)),
+    );
     let rest = collapse(&rest_root, triangles);
     let bounds = rest_ids.iter().fold(Aabb::EMPTY, |b, &i| grow(b, &triangles[i as usize]));
     let whole = large_root.map(|large_root| {

@@ -61,8 +61,8 @@ fn area(t: &Triangle) -> f64 {
 }
 
 /// How many of the `k_max` largest triangles (the head of `order`, largest first) to take out,
-/// by the cost model; 0 for none.
-fn pick(triangles: &[Triangle], order: &[u32], k_max: usize) -> usize {
+/// by the cost model (0 for none), and the half area of all the triangles' box.
+fn pick(triangles: &[Triangle], order: &[u32], k_max: usize) -> (usize, f32) {
     // The box of all triangles but the first k of `order`, for k = k_max down to 0.
     let mut rest = order[k_max..].iter().fold(Aabb::EMPTY, |b, &i| grow(b, &triangles[i as usize]));
     let mut boxes = vec![rest; k_max + 1];
@@ -70,23 +70,32 @@ fn pick(triangles: &[Triangle], order: &[u32], k_max: usize) -> usize {
         rest = grow(rest, &triangles[order[k] as usize]);
         boxes[k] = rest;
     }
-    let whole = boxes[0].half_area() as f64;
+    let scene_area = boxes[0].half_area();
+    let whole = scene_area as f64;
     if !(whole > 0.0) {
-        return 0;
+        return (0, scene_area);
     }
     let cost = |k: usize| k as f64 / LARGE_PER_TRAVERSAL + boxes[k].half_area() as f64 / whole;
     let best = (1..=k_max).min_by(|&a, &b| cost(a).total_cmp(&cost(b))).unwrap_or(0);
     if best > 0 && cost(best) <= 1.0 - MIN_GAIN {
-        best
+        (best, scene_area)
     } else {
-        0
+        (0, scene_area)
     }
 }
 
-/// The large triangles the cost model favours taking out of `triangles` and the others, ids
-/// ascending in both; `None` where none pays (few triangles, which brute force takes whole, or
-/// no large ones around the rest).
-fn choose(triangles: &[Triangle]) -> Option<(Vec<u32>, Vec<u32>)> {
+/// The triangles a split takes out and those it leaves, ids ascending in both, and the half
+/// area of the scene's box.
+struct Chosen {
+    large_ids: Vec<u32>,
+    rest_ids: Vec<u32>,
+    scene_area: f32,
+}
+
+/// The large triangles the cost model favours taking out of `triangles`, and the others; `None`
+/// where none pays (few triangles, which brute force takes whole, or no large ones around the
+/// rest).
+fn choose(triangles: &[Triangle]) -> Option<Chosen> {
     if triangles.len() <= 4 * MAX_LARGE {
         return None;
     }
@@ -97,7 +106,7 @@ fn choose(triangles: &[Triangle]) -> Option<(Vec<u32>, Vec<u32>)> {
     let by_area = |a: &u32, b: &u32| areas[*b as usize].total_cmp(&areas[*a as usize]).then(a.cmp(b));
     order.select_nth_unstable_by(k_max, by_area);
     order[..k_max].sort_unstable_by(by_area);
-    let k = pick(triangles, &order, k_max);
+    let (k, scene_area) = pick(triangles, &order, k_max);
     if k == 0 {
         return None;
     }
@@ -105,7 +114,7 @@ fn choose(triangles: &[Triangle]) -> Option<(Vec<u32>, Vec<u32>)> {
     large_ids.sort_unstable();
     let mut rest_ids = order[k..].to_vec();
     rest_ids.sort_unstable();
-    Some((large_ids, rest_ids))
+    Some(Chosen { large_ids, rest_ids, scene_area })
 }
 
 /// The wide BVH over all `triangles` and, where the cost model favours one, the split. With a
@@ -126,16 +135,18 @@ pub fn build_split(triangles: &[Triangle]) -> Option<Split> {
     choose(triangles).map(|ids| split(triangles, ids, false).1)
 }
 
-/// The split of `triangles` into `large_ids` and `rest_ids`, and with `whole` the whole BVH.
-fn split(triangles: &[Triangle], (large_ids, rest_ids): (Vec<u32>, Vec<u32>), whole: bool) -> (Option<WideBvh>, Split) {
+/// The split of `triangles` that `chosen` names, and with `whole` the whole BVH.
+fn split(triangles: &[Triangle], chosen: Chosen, whole: bool) -> (Option<WideBvh>, Split) {
+    let Chosen { large_ids, rest_ids, scene_area } = chosen;
     // Spatial splits in the rest's tree are looked for as in a tree over the whole scene.
-    let scene_area = Some(triangles.iter().fold(Aabb::EMPTY, grow).half_area());
+    let scene_area = Some(scene_area);
     let (rest_root, large_root) = rayon::join(
         || binary(triangles, Some(&rest_ids), scene_area),
         || whole.then(|| binary(triangles, Some(&large_ids), scene_area)),
     );
     let rest = collapse(&rest_root, triangles);
-    let bounds = rest_ids.iter().fold(Aabb::EMPTY, |b, &i| grow(b, &triangles[i as usize]));
+    // The root's box: that of the rest's whole triangles (spatial splits cut only below it).
+    let bounds = rest_root.bounds;
     let whole = large_root.map(|large_root| {
         let mut b = rest_root.bounds;
         b.grow(large_root.bounds.lo, large_root.bounds.hi);

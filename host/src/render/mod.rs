@@ -296,19 +296,15 @@ impl Compiled {
         use crate::bvh::split;
         // `KDTRACE_CPU_SPLIT=off` keeps one BVH for every ray (to compare the two).
         let off = std::env::var("KDTRACE_CPU_SPLIT").as_deref() == Ok("off");
-        if self.alpha_masks || off {
-            let _ = self.split.set(None);
-        }
         if self.split.get().is_none() {
-            match self.wide.get() {
-                Some(_) => {
-                    let _ = self.split.set(split::build_split(&self.scene.triangles));
-                }
-                None => {
-                    let (w, s) = split::build(&self.scene.triangles);
-                    let _ = self.split.set(s);
-                    let _ = self.wide.set(w);
-                }
+            if self.alpha_masks || off {
+                let _ = self.split.set(None);
+            } else if self.wide.get().is_some() {
+                let _ = self.split.set(split::build_split(&self.scene.triangles));
+            } else {
+                let (w, s) = split::build(&self.scene.triangles);
+                let _ = self.split.set(s);
+                let _ = self.wide.set(w);
             }
         }
         self.wide_bvh()

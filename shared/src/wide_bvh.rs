@@ -46,6 +46,27 @@ fn min(a: Lanes, b: Lanes) -> Lanes {
     a.simd_lt(b).select(a, b)
 }
 
+/// Asks the cache for a child's node or leaf block (x86-64 only; nothing elsewhere).
+#[inline(always)]
+fn prefetch(tree: &WideView, child: u32) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use core::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        // A node's 224 bytes span four cache lines, a leaf's block of 288 five.
+        let (p, lines) = if child & LEAF_BIT == 0 {
+            (tree.nodes.as_ptr().wrapping_add(child as usize) as *const i8, 4)
+        } else {
+            (tree.blocks.as_ptr().wrapping_add(WideNode::leaf_of(child).0 as usize) as *const i8, 5)
+        };
+        for l in 0..lines {
+            // SAFETY: a prefetch reads nothing and never faults, whatever the address.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64 * l)) };
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (tree, child);
+}
+
 #[derive(Clone, Copy)]
 struct Entry {
     child: u32,
@@ -144,7 +165,14 @@ pub(crate) fn traverse_from<const MASKS: bool>(
                     child = n.child[mask.trailing_zeros() as usize];
                     continue;
                 }
-                // Several: push all but the nearest, farthest first, and go on to the nearest.
+                // Several: ask the cache for each now, so that a far child popped later need not
+                // wait for its loads (the traversal is a chain of dependent loads).
+                let mut all = mask;
+                while all != 0 {
+                    prefetch(&tree, n.child[all.trailing_zeros() as usize]);
+                    all &= all - 1;
+                }
+                // Push all but the nearest, farthest first, and go on to the nearest.
                 // The builder bounds the depth by `MAX_DEPTH`, so the stack cannot overflow on a
                 // tree it made; the guard only keeps a corrupt tree from writing out of bounds.
                 if sp + WIDTH <= STACK_SIZE {

@@ -19,7 +19,7 @@
 //! against the slab instead.
 use crate::glam::Vec3;
 use crate::kdtree::{safe_reciprocal, test_block_run, usable_direction, Hit};
-use crate::layout::{WideNode, WIDE_LEAF_BIT as LEAF_BIT, WIDE_MAX_DEPTH as MAX_DEPTH, WIDE_WIDTH as WIDTH};
+use crate::layout::{TriBlock, WideNode, WIDE_LEAF_BIT as LEAF_BIT, WIDE_MAX_DEPTH as MAX_DEPTH, WIDE_WIDTH as WIDTH};
 use crate::numerics::T_SLACK;
 use crate::scene::{SceneView, WideView};
 use crate::triangle::RayShear;
@@ -46,17 +46,25 @@ fn min(a: Lanes, b: Lanes) -> Lanes {
     a.simd_lt(b).select(a, b)
 }
 
+/// The most 64-byte cache lines one `T` in an array can touch: its size plus the most it can
+/// start past a line's start (a line less its alignment), in lines (a node: four, a leaf block:
+/// five).
+#[cfg(target_arch = "x86_64")]
+const fn lines_spanned<T>() -> usize {
+    (core::mem::size_of::<T>() + 64usize.saturating_sub(core::mem::align_of::<T>())).div_ceil(64)
+}
+
 /// Asks the cache for a child's node or leaf block (x86-64 only; nothing elsewhere).
 #[inline(always)]
 fn prefetch(tree: &WideView, child: u32) {
     #[cfg(target_arch = "x86_64")]
     {
         use core::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        // A node's 224 bytes span four cache lines, a leaf's block of 288 five.
         let (p, lines) = if child & LEAF_BIT == 0 {
-            (tree.nodes.as_ptr().wrapping_add(child as usize) as *const i8, 4)
+            (tree.nodes.as_ptr().wrapping_add(child as usize) as *const i8, lines_spanned::<WideNode>())
         } else {
-            (tree.blocks.as_ptr().wrapping_add(WideNode::leaf_of(child).0 as usize) as *const i8, 5)
+            let k = WideNode::leaf_of(child).0 as usize;
+            (tree.blocks.as_ptr().wrapping_add(k) as *const i8, lines_spanned::<TriBlock>())
         };
         for l in 0..lines {
             // SAFETY: a prefetch reads nothing and never faults, whatever the address.

@@ -16,8 +16,8 @@
 //! renders with it to compare with the GPU, which traverses the k-d tree.
 use super::sampler::LaneSampler;
 use super::warp::{
-    cosine_hemisphere, offset_ray_origin, orthonormal_basis, power_heuristic, primary_direction, uniform_triangle,
-    weights, Triangles,
+    cosine_hemisphere, offset_ray_origin, orthonormal_basis, power_heuristic, power_heuristic3, primary_direction,
+    uniform_triangle, weights, Triangles,
 };
 use super::{brute, split, sqrt, Hits, F, LANES, M, U, V3};
 use crate::features::{
@@ -243,6 +243,17 @@ fn trace_paths(
     let lights =
         (v.has(FEATURE_EMITTERS) | v.has(FEATURE_ENVIRONMENT_MAP) | v.has(FEATURE_PUNCTUAL)) & (scene.light_count > 0);
     let many = v.has(FEATURE_MANY_EMITTERS);
+    let bidir = BIDIR
+        & lights
+        & !kinds
+        & v.has(FEATURE_INDIRECT)
+        & !v.has(FEATURE_VERTEX_NORMALS)
+        & !v.has(FEATURE_TEXTURES)
+        & (v.max_bounces > 0);
+    let lv = if bidir { light_vertices(scene, p, many, &rng, live) } else { LightVertex::none() };
+    // The previous vertex's 1 / (pi * its area density from the vertex before), 0 where the
+    // connection strategy cannot make the path; and |n . wi| there.
+    let (mut prev_inv_pi_a, mut prev_cos) = (zero, zero);
     while alive.any() {
         let hits = trace_closest(scene, p, origin, dir, alive, bounce == 0);
         if bounce == 0 {
@@ -342,7 +353,13 @@ fn trace_paths(
                     let dist2 = t * t * dir.dot(dir);
                     let cos_l = n.dot(dir.normalize()).abs();
                     let light_pdf = F::from_array(pmf) * dist2 / (cos_l * F::from_array(area));
-                    weight = M::from_array(entry).select(power_heuristic(bsdf_pdf, light_pdf), weight);
+                    let w = if bidir {
+                        let q2 = F::from_array(pmf) / F::from_array(area) * prev_cos * prev_inv_pi_a;
+                        power_heuristic3(bsdf_pdf, light_pdf, q2)
+                    } else {
+                        power_heuristic(bsdf_pdf, light_pdf)
+                    };
+                    weight = M::from_array(entry).select(w, weight);
                 }
                 radiance = V3::select(emits, radiance + (beta * le).scale(weight), radiance);
             }
@@ -367,6 +384,15 @@ fn trace_paths(
             nf
         };
         let sides = Sides { check: v.has(FEATURE_VERTEX_NORMALS), nf, ns };
+        // This vertex's area density from the vertex before (BSDF-sampled there), for the
+        // connection strategy's MIS weight.
+        let inv_pi_a = if bidir & (bounce > 0) {
+            let len2 = dir.dot(dir);
+            let a = bsdf_pdf * n.dot(dir).abs() / (sqrt(len2) * len2 * t * t);
+            F::splat(1.0) / (F::splat(core::f32::consts::PI) * a)
+        } else {
+            zero
+        };
         if lights {
             let nee = k.as_ref().map_or(alive, |k| alive & !k.delta);
             let bsdfs = k.as_ref();
@@ -385,8 +411,12 @@ fn trace_paths(
                 beta,
                 u_select,
                 u_light,
+                inv_pi_a,
                 &mut radiance,
             );
+        }
+        if bidir & (bounce < v.max_bounces) {
+            connect(scene, p, &lv, alive, pos, spawn, nf, g.albedo, beta, &mut radiance);
         }
 
         // The Lambertian BSDF sample (`material::diffuse::sample`) on every lane; no lobe to
@@ -419,6 +449,9 @@ fn trace_paths(
             }
         }
         alive &= !pdf.simd_le(zero) & sides.consistent(wi);
+        if bidir {
+            (prev_inv_pi_a, prev_cos) = (inv_pi_a, nf.dot(wi).abs());
+        }
         beta = V3::select(alive, beta * weight, beta);
         bsdf_pdf = pdf;
         bounce += 1;
@@ -499,6 +532,7 @@ fn next_event(
     beta: V3,
     u_select: F,
     u_light: F,
+    inv_pi_a: F,
     radiance: &mut V3,
 ) {
     let zero = F::splat(0.0);
@@ -592,23 +626,164 @@ fn next_event(
     let from =
         if (behind & valid).any() { V3::select(behind, offset_ray_origin(pos, error, -nf), spawn) } else { spawn };
     let shadow_dir = target - from;
-    let unblocked = if brute_force(scene, p, valid) {
+    let unblocked = unblocked(scene, p, from, shadow_dir, valid);
+    let weight = if BIDIR {
+        let q2 = F::from_array(pmf) / F::from_array(area) * nf.dot(wi).abs() * inv_pi_a;
+        power_heuristic3(light_pdf, pdf_bsdf, q2)
+    } else {
+        power_heuristic(light_pdf, pdf_bsdf)
+    };
+    let added = (beta * f * lg.emission).scale(cos_i.abs() * weight / light_pdf);
+    *radiance = V3::select(unblocked, *radiance + added, *radiance);
+}
+
+/// Whether the live lanes' segments `from` to `from + dir` (to 1 - SHADOW_EPSILON of it) are
+/// unblocked.
+#[inline(always)]
+fn unblocked(scene: &SceneView, p: &RenderParams, from: V3, dir: V3, valid: M) -> M {
+    (if brute_force(scene, p, valid) {
         let t_max = F::splat(1.0 - SHADOW_EPSILON);
-        brute::cast(scene.triangles, &[], from, shadow_dir, t_max, valid, true).triangle.simd_eq(U::splat(NO_HIT))
+        brute::cast(scene.triangles, &[], from, dir, t_max, valid, true).triangle.simd_eq(U::splat(NO_HIT))
     } else if split::applies(scene, p, valid) {
-        split::unblocked(scene, from, shadow_dir, F::splat(1.0 - SHADOW_EPSILON), valid)
+        split::unblocked(scene, from, dir, F::splat(1.0 - SHADOW_EPSILON), valid)
     } else {
         let mut unblocked = [false; LANES];
         for (i, u) in unblocked.iter_mut().enumerate() {
             if valid.test(i) {
-                *u = !query(scene, p.traversal, from.lane(i), shadow_dir.lane(i), 1.0 - SHADOW_EPSILON, true)
-                    .hit
-                    .is_hit();
+                *u = !query(scene, p.traversal, from.lane(i), dir.lane(i), 1.0 - SHADOW_EPSILON, true).hit.is_hit();
             }
         }
         M::from_array(unblocked)
-    } & valid;
-    let weight = power_heuristic(light_pdf, pdf_bsdf);
-    let added = (beta * f * lg.emission).scale(cos_i.abs() * weight / light_pdf);
-    *radiance = V3::select(unblocked, *radiance + added, *radiance);
+    }) & valid
+}
+
+/// Whether light subpaths connect to the eye vertices (prototype).
+const BIDIR: bool = true;
+
+/// The first vertex of each lane's light subpath: a point on an emitting triangle (picked as
+/// next-event estimation picks it), a cosine-distributed direction, the surface it reaches.
+struct LightVertex {
+    valid: M,
+    pos: V3,
+    error: F,
+    n: V3,
+    albedo: V3,
+    /// Unit direction from the vertex to the point on the light.
+    to_light: V3,
+    dist2: F,
+    cos_l: F,
+    /// The light point's area density (pmf / area).
+    pa: F,
+    /// Emission * pi / pa: the subpath's weight at the vertex, before the vertex's BSDF.
+    power: V3,
+}
+
+impl LightVertex {
+    fn none() -> Self {
+        let z = F::splat(0.0);
+        LightVertex {
+            valid: M::splat(false),
+            pos: V3::ZERO,
+            error: z,
+            n: V3::ZERO,
+            albedo: V3::ZERO,
+            to_light: V3::ZERO,
+            dist2: z,
+            cos_l: z,
+            pa: z,
+            power: V3::ZERO,
+        }
+    }
+}
+
+#[inline(always)]
+fn light_vertices(scene: &SceneView, p: &RenderParams, many: bool, rng: &LaneSampler, live: M) -> LightVertex {
+    let zero = F::splat(0.0);
+    let [ua, ub, uc, ud] = rng.independent_4d(0xB1D1_0001);
+    let (mut triangle, mut pmf, mut area, mut u1) = ([0u32; LANES], [0.0f32; LANES], [1.0f32; LANES], ua.to_array());
+    let mut ok = live;
+    for i in 0..LANES {
+        if live.test(i) {
+            let index = if many { select_light(scene.lights, scene.light_count, u1[i]) } else { 0 };
+            let light = scene.lights[index as usize];
+            if many {
+                u1[i] = remap_in_light(scene.lights, index, u1[i]);
+            }
+            if light.triangle >= LIGHT_NOT_TRIANGLE {
+                ok.set(i, false);
+                continue;
+            }
+            (triangle[i], pmf[i], area[i]) = (light.triangle, light.pmf, light.area);
+        }
+    }
+    let lg = gather(scene, &triangle, ok);
+    let (b0, b1, b2) = uniform_triangle(F::from_array(u1), ub);
+    let (q, q_error) = lg.tris.interpolate(b0, b1, b2);
+    let nl = lg.tris.n;
+    let local = cosine_hemisphere(uc, ud);
+    let (tb, bb) = orthonormal_basis(nl);
+    let dir = tb.scale(local.x) + bb.scale(local.y) + nl.scale(local.z);
+    let ok = ok & local.z.simd_gt(zero) & lg.emission.any_positive();
+    let origin = offset_ray_origin(q, q_error, nl);
+    let hits = trace_closest(scene, p, origin, dir, ok, false);
+    let hit = hits.triangle.simd_ne(U::splat(NO_HIT)) & ok;
+    let yg = gather(scene, &hits.triangle.to_array(), hit);
+    let b = weights(hits.u, hits.v, hits.w);
+    let (pos, error) = yg.tris.interpolate(b.0, b.1, b.2);
+    let len2 = dir.dot(dir);
+    let pa = F::from_array(pmf) / F::from_array(area);
+    LightVertex {
+        valid: hit & yg.albedo.any_positive(),
+        pos,
+        error,
+        n: yg.tris.n,
+        albedo: yg.albedo,
+        to_light: -dir.scale(F::splat(1.0) / sqrt(len2)),
+        dist2: hits.t * hits.t * len2,
+        cos_l: local.z,
+        pa,
+        power: lg.emission.scale(F::splat(core::f32::consts::PI) / pa),
+    }
+}
+
+/// The connection strategy at an eye vertex (Lambertian, flat normal `nf` toward the ray's
+/// origin): its path through the light subpath's vertex, MIS-weighted against the path
+/// tracer's two ways of making the same path.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn connect(
+    scene: &SceneView,
+    p: &RenderParams,
+    lv: &LightVertex,
+    alive: M,
+    pos: V3,
+    spawn: V3,
+    nf: V3,
+    albedo: V3,
+    beta: V3,
+    radiance: &mut V3,
+) {
+    let zero = F::splat(0.0);
+    let d = lv.pos - pos;
+    let dist2 = d.dot(d);
+    let w = d.scale(F::splat(1.0) / sqrt(dist2));
+    let cos_e = nf.dot(w);
+    let cos_ye = lv.n.dot(w);
+    let nfy = V3::select(cos_ye.simd_lt(zero), lv.n, -lv.n);
+    let cos_yl = nfy.dot(lv.to_light);
+    let valid = alive & lv.valid & cos_e.simd_gt(zero) & cos_yl.simd_gt(zero) & dist2.simd_gt(zero);
+    if !valid.any() {
+        return;
+    }
+    let inv_pi = F::splat(INV_PI);
+    let a = cos_e * inv_pi * cos_ye.abs() / dist2;
+    let q0 = cos_yl * inv_pi;
+    let q1 = lv.pa * lv.dist2 / lv.cos_l;
+    let q2 = lv.pa * cos_yl * inv_pi / a;
+    let w2 = power_heuristic3(q2, q0, q1);
+    let target = offset_ray_origin(lv.pos, lv.error, nfy);
+    let open = unblocked(scene, p, spawn, target - spawn, valid);
+    let g = inv_pi * inv_pi * cos_e * cos_ye.abs() / dist2 * w2;
+    let added = (beta * albedo * lv.albedo * lv.power).scale(g);
+    *radiance = V3::select(open, *radiance + added, *radiance);
 }

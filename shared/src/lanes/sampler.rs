@@ -134,6 +134,13 @@ impl LaneSampler {
         (unit(b[0]), unit(b[1]))
     }
 
+    /// Four uniforms of a hash keyed by `tag`, independent of every set.
+    #[inline(always)]
+    pub fn independent_4d(&self, tag: u32) -> [F; 4] {
+        let h = pcg4d(U::splat(self.pixel), self.sample, U::splat(tag), U::splat(self.seed ^ 0x5bd1_e995));
+        [unit(h[0]), unit(h[1]), unit(h[2]), unit(h[3])]
+    }
+
     /// `Sampler::independent_after`: a uniform independent of the last set, for a BSDF's lobe
     /// pick.
     #[inline(always)]

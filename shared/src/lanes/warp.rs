@@ -80,6 +80,15 @@ pub fn power_heuristic(f: F, g: F) -> F {
     sum.simd_eq(F::splat(0.0)).select(F::splat(0.0), w)
 }
 
+/// The power heuristic's weight of `f` among three strategies' densities.
+#[inline(always)]
+pub fn power_heuristic3(f: F, g: F, h: F) -> F {
+    let f2 = f * f;
+    let sum = f2 + g * g + h * h;
+    let w = f2.simd_gt(F::splat(f32::MAX)).select(F::splat(1.0), f2 / sum);
+    sum.simd_eq(F::splat(0.0)).select(F::splat(0.0), w)
+}
+
 /// `numerics::is_finite`.
 #[inline(always)]
 fn is_finite(x: F) -> M {

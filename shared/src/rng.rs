@@ -194,6 +194,13 @@ impl Sampler {
         u32_to_unit_f32(pcg4d(self.pixel, self.sample, self.set.wrapping_sub(1), self.seed)[3])
     }
 
+    /// Four uniforms of a hash keyed by `tag`, independent of every set (the light subpath's).
+    #[inline]
+    pub fn independent_4d(&self, tag: u32) -> [f32; 4] {
+        let h = pcg4d(self.pixel, self.sample, tag, self.seed ^ 0x5bd1_e995);
+        [u32_to_unit_f32(h[0]), u32_to_unit_f32(h[1]), u32_to_unit_f32(h[2]), u32_to_unit_f32(h[3])]
+    }
+
     /// Sets drawn so far.
     #[inline]
     pub fn set(&self) -> u32 {

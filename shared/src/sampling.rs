@@ -58,6 +58,20 @@ pub fn uniform_triangle(u1: f32, u2: f32) -> (f32, f32, f32) {
     (b0, b1, su - b1)
 }
 
+/// The power heuristic's weight of `f` among three strategies' densities `f`, `g`, `h`.
+#[inline]
+pub fn power_heuristic3(f: f32, g: f32, h: f32) -> f32 {
+    let f2 = f * f;
+    let sum = f2 + g * g + h * h;
+    if sum == 0.0 {
+        return 0.0;
+    }
+    if f2 > f32::MAX {
+        return 1.0;
+    }
+    f2 / sum
+}
+
 /// Veach's power heuristic (β = 2) for the strategy with density `f` against one with `g`.
 #[inline]
 pub fn power_heuristic(f: f32, g: f32) -> f32 {

@@ -243,13 +243,7 @@ fn trace_paths(
     let lights =
         (v.has(FEATURE_EMITTERS) | v.has(FEATURE_ENVIRONMENT_MAP) | v.has(FEATURE_PUNCTUAL)) & (scene.light_count > 0);
     let many = v.has(FEATURE_MANY_EMITTERS);
-    let bidir = BIDIR
-        & lights
-        & !kinds
-        & v.has(FEATURE_INDIRECT)
-        & !v.has(FEATURE_VERTEX_NORMALS)
-        & !v.has(FEATURE_TEXTURES)
-        & (v.max_bounces > 0);
+    let bidir = crate::integrator::connects(scene, p, v);
     let lv = if bidir { light_vertices(scene, p, many, &rng, live) } else { LightVertex::none() };
     // The previous vertex's 1 / (pi * its area density from the vertex before), 0 where the
     // connection strategy cannot make the path; and |n . wi| there.
@@ -627,7 +621,7 @@ fn next_event(
         if (behind & valid).any() { V3::select(behind, offset_ray_origin(pos, error, -nf), spawn) } else { spawn };
     let shadow_dir = target - from;
     let unblocked = unblocked(scene, p, from, shadow_dir, valid);
-    let weight = if BIDIR {
+    let weight = if crate::integrator::CONNECT {
         let q2 = F::from_array(pmf) / F::from_array(area) * nf.dot(wi).abs() * inv_pi_a;
         power_heuristic3(light_pdf, pdf_bsdf, q2)
     } else {
@@ -656,9 +650,6 @@ fn unblocked(scene: &SceneView, p: &RenderParams, from: V3, dir: V3, valid: M) -
         M::from_array(unblocked)
     }) & valid
 }
-
-/// Whether light subpaths connect to the eye vertices (prototype).
-const BIDIR: bool = true;
 
 /// The first vertex of each lane's light subpath: a point on an emitting triangle (picked as
 /// next-event estimation picks it), a cosine-distributed direction, the surface it reaches.
@@ -699,7 +690,7 @@ impl LightVertex {
 #[inline(always)]
 fn light_vertices(scene: &SceneView, p: &RenderParams, many: bool, rng: &LaneSampler, live: M) -> LightVertex {
     let zero = F::splat(0.0);
-    let [ua, ub, uc, ud] = rng.independent_4d(0xB1D1_0001);
+    let [ua, ub, uc, ud] = rng.independent_4d(crate::integrator::CONNECT_TAG);
     let (mut triangle, mut pmf, mut area, mut u1) = ([0u32; LANES], [0.0f32; LANES], [1.0f32; LANES], ua.to_array());
     let mut ok = live;
     for i in 0..LANES {

@@ -385,7 +385,17 @@ intensity = 2
         ("scenes/bunny.toml", &["--spp", "9", "--bounces", "3", "--seed", "7"]),
         (
             "scenes/uneven-noise.obj",
-            &["--spp", "35", "--bounces", "8", "--eye=0.4,1.0,3.9", "--target=2.6,1.0,0.5", "--fov=70"],
+            &[
+                "--spp",
+                "35",
+                "--bounces",
+                "8",
+                "--eye=0.4,1.0,3.9",
+                "--target=2.6,1.0,0.5",
+                "--fov=70",
+                "--connect",
+                "on",
+            ],
         ),
         ("tests/data/meshes/CornellBox-Original/CornellBox-Original.obj", &["--spp", "17", "--bounces", "6"]),
         ("tests/data/cornell-textured/cornell-textured.toml", &["--spp", "18", "--bounces", "4"]),

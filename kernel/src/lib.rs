@@ -53,7 +53,7 @@ fn view<'a>(
 #[allow(clippy::too_many_arguments)]
 pub fn render_pass(
     #[spirv(global_invocation_id)] id: UVec3,
-    #[spirv(spec_constant(id = 0, default = 16383))] features: u32,
+    #[spirv(spec_constant(id = 0, default = 32767))] features: u32,
     #[spirv(spec_constant(id = 1, default = 4294967295))] max_bounces: u32,
     #[spirv(spec_constant(id = 2, default = 4294967295))] rr_start: u32,
     #[spirv(uniform, descriptor_set = 0, binding = 0)] params: &RenderParams,
@@ -90,7 +90,7 @@ pub fn render_pass(
 pub fn render_persistent(
     #[spirv(local_invocation_index)] lane: u32,
     #[spirv(workgroup)] batch: &mut u32,
-    #[spirv(spec_constant(id = 0, default = 16383))] features: u32,
+    #[spirv(spec_constant(id = 0, default = 32767))] features: u32,
     #[spirv(spec_constant(id = 1, default = 4294967295))] max_bounces: u32,
     #[spirv(spec_constant(id = 2, default = 4294967295))] rr_start: u32,
     #[spirv(uniform, descriptor_set = 0, binding = 0)] params: &RenderParams,
@@ -150,7 +150,7 @@ pub fn render_persistent(
 pub fn render_list(
     #[spirv(global_invocation_id)] id: UVec3,
     #[spirv(num_workgroups)] groups: UVec3,
-    #[spirv(spec_constant(id = 0, default = 16383))] features: u32,
+    #[spirv(spec_constant(id = 0, default = 32767))] features: u32,
     #[spirv(spec_constant(id = 1, default = 4294967295))] max_bounces: u32,
     #[spirv(spec_constant(id = 2, default = 4294967295))] rr_start: u32,
     #[spirv(uniform, descriptor_set = 0, binding = 0)] params: &RenderParams,

@@ -40,11 +40,30 @@ pub const FEATURE_VERTEX_NORMALS: u32 = 1 << 11;
 pub const FEATURE_ENVIRONMENT_MAP: u32 = 1 << 12;
 /// Punctual lights (`punctual`: point, spot, directional) in the light table.
 pub const FEATURE_PUNCTUAL: u32 = 1 << 13;
+/// Light subpaths connect to the eye vertices (`integrator::connect`): a render setting, on only
+/// where `connection_applies` to the scene's other bits. Unlike the bits above it changes the
+/// estimator, so the generic code reads it from `RenderParams::connect` too.
+pub const FEATURE_CONNECT: u32 = 1 << 14;
 /// Every feature: the generic code, which serves any scene.
-pub const FEATURES_ALL: u32 = (1 << 14) - 1;
+pub const FEATURES_ALL: u32 = (1 << 15) - 1;
 /// The material-kind bits: when exactly one is set, material dispatch is skipped.
 pub const FEATURE_MATERIALS: u32 =
     FEATURE_DIFFUSE | FEATURE_CONDUCTOR | FEATURE_DIELECTRIC | FEATURE_PLASTIC | FEATURE_PRINCIPLED;
+
+/// Whether the connection strategy (`FEATURE_CONNECT`) serves a scene of feature bits `bits`:
+/// emitting triangles and indirect light, Lambertian surfaces alone with flat normals and
+/// without textures or alpha masks, and no environment map or punctual lights (its light
+/// subpaths start on emitting triangles, and its vertices' BSDF is the albedo over pi).
+pub const fn connection_applies(bits: u32) -> bool {
+    let needs = FEATURE_EMITTERS | FEATURE_INDIRECT | FEATURE_DIFFUSE;
+    let excludes = (FEATURE_MATERIALS & !FEATURE_DIFFUSE)
+        | FEATURE_TEXTURES
+        | FEATURE_ALPHA_MASKS
+        | FEATURE_VERTEX_NORMALS
+        | FEATURE_ENVIRONMENT_MAP
+        | FEATURE_PUNCTUAL;
+    (bits & needs == needs) & (bits & excludes == 0)
+}
 
 /// A bounce limit or roulette start given by specialisation constant: this value (the kernel's
 /// default) means "read it from `RenderParams`".
@@ -111,5 +130,33 @@ impl Variant {
     #[inline(always)]
     pub fn only_material(self, kind: u32) -> bool {
         self.features & FEATURE_MATERIALS == kind
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn connections_apply_to_lambertian_rooms_lit_by_emitting_triangles() {
+        let room = FEATURE_EMITTERS | FEATURE_INDIRECT | FEATURE_DIFFUSE;
+        assert!(connection_applies(room));
+        assert!(connection_applies(room | FEATURE_MANY_EMITTERS | FEATURE_ENVIRONMENT));
+        for (why, bit) in [
+            ("a conductor", FEATURE_CONDUCTOR),
+            ("a dielectric", FEATURE_DIELECTRIC),
+            ("a plastic", FEATURE_PLASTIC),
+            ("a principled material", FEATURE_PRINCIPLED),
+            ("textures", FEATURE_TEXTURES),
+            ("alpha masks", FEATURE_ALPHA_MASKS),
+            ("vertex normals", FEATURE_VERTEX_NORMALS),
+            ("an environment map", FEATURE_ENVIRONMENT_MAP),
+            ("punctual lights", FEATURE_PUNCTUAL),
+        ] {
+            assert!(!connection_applies(room | bit), "{why}");
+        }
+        for missing in [FEATURE_EMITTERS, FEATURE_INDIRECT, FEATURE_DIFFUSE] {
+            assert!(!connection_applies(room & !missing), "without {missing:#b}");
+        }
     }
 }

@@ -13,6 +13,7 @@
 //! hits, emission, light and BSDF samples, roulette); the renderers (`render_samples`) pass
 //! `NoRecord`, whose hooks compile to nothing.
 use crate::camera::primary_direction;
+use crate::connection::{connect, connects, inv_pi_area, light_vertex, LightVertex};
 use crate::environment;
 use crate::exp::exp_neg;
 use crate::features::{
@@ -34,10 +35,7 @@ use crate::record::{
     END_ROULETTE, LIGHT_BLOCKED, LIGHT_DELTA, LIGHT_INVALID, LIGHT_UNBLOCKED, RAY_BOUNCE, RAY_CAMERA, RAY_SHADOW,
 };
 use crate::rng::Sampler;
-use crate::sampling::{
-    cosine_hemisphere, orthonormal_basis, power_heuristic, power_heuristic3, remap_in_light, select_light,
-    uniform_triangle, INV_PI,
-};
+use crate::sampling::{power_heuristic, power_heuristic3, remap_in_light, select_light, uniform_triangle};
 use crate::scene::SceneView;
 use crate::surface::{consistent, emission_at, hit_weights, material_at, shading_normal};
 #[cfg(not(target_arch = "spirv"))]
@@ -70,12 +68,12 @@ struct Path {
     bsdf_pdf: f32,
     /// Indirect bounces taken: 0 while the camera ray is traced.
     bounce: u32,
-    /// Whether the light subpath connects to the eye vertices (`connects`).
-    bidir: bool,
     /// The previous vertex's 1 / (pi * its area density from the vertex before), 0 where the
     /// connection cannot make the path; and |nf . wi| there.
     prev_inv_pi_a: f32,
     prev_cos: f32,
+    /// Whether the light subpath connects to the eye vertices (`connects`).
+    bidir: bool,
 }
 
 /// Traces sample `sample` of pixel (px, py), telling `rec` of every event on the path
@@ -123,6 +121,8 @@ fn trace_path<R: Recorder>(
         prev_cos: 0.0,
     };
     path.bidir = connects(scene, p, v);
+    // Not a field of `Path`: naga sizes a struct holding `Vec3`s to a multiple of 16 bytes, so
+    // nested in another one its end would overlap the next member.
     let lv = if path.bidir { light_vertex(scene, p, v, &rng) } else { LightVertex::NONE };
     let mut primary = NO_HIT;
     let mut alive = true;
@@ -214,6 +214,7 @@ fn facing(ng: Vec3, n: Vec3, dir: Vec3) -> (Vec3, bool) {
 /// One path vertex: emission (MIS-weighted against light sampling), next-event estimation, then
 /// the BSDF sample that continues the path. Returns whether the path goes on.
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 fn shade_vertex<R: Recorder>(
     scene: &SceneView,
     p: &RenderParams,
@@ -313,13 +314,7 @@ fn shade_vertex<R: Recorder>(
     let ns = shading_normal(scene, v, hit.triangle, hit_weights(hit), nf, wo);
     // This vertex's area density from the vertex before (BSDF-sampled there), for the
     // connection strategy's MIS weight.
-    let inv_pi_a = if path.bidir & (path.bounce > 0) {
-        let len2 = length_squared(dir);
-        let a = path.bsdf_pdf * dot(n, dir).abs() / (len2.sqrt() * len2 * hit.t * hit.t);
-        1.0 / (core::f32::consts::PI * a)
-    } else {
-        0.0
-    };
+    let inv_pi_a = if path.bidir & (path.bounce > 0) { inv_pi_area(path.bsdf_pdf, n, dir, hit.t) } else { 0.0 };
 
     // A smooth mirror reflects no sampled light: its reflection of an emitter counts in full
     // when the BSDF ray hits it (`DELTA_PDF` takes the whole MIS weight).
@@ -643,152 +638,5 @@ pub fn render_runs_for<const F: u32>(
         render_samples(scene, p, Variant::new(F, p), x, y, s, n, &mut sum[run], &mut sum_sq[run], primary);
         s += n;
         run += 1;
-    }
-}
-
-/// Whether light subpaths connect to the eye vertices (a prototype: on wherever it applies).
-pub(crate) const CONNECT: bool = true;
-
-/// The hash key of the light subpath's uniforms (`Sampler::independent_4d`).
-pub(crate) const CONNECT_TAG: u32 = 0xB1D1_0001;
-
-/// Whether the connection strategy runs for variant `v`: triangle emitters lighting Lambertian
-/// surfaces with flat normals, no textures, and at least one bounce.
-#[inline(always)]
-pub(crate) fn connects(scene: &SceneView, p: &RenderParams, v: Variant) -> bool {
-    CONNECT
-        & (p.aov == crate::layout::AOV_RADIANCE)
-        & v.has(FEATURE_EMITTERS)
-        & (scene.light_count > 0)
-        & v.only_material(crate::features::FEATURE_DIFFUSE)
-        & !v.has(FEATURE_ENVIRONMENT_MAP)
-        & !v.has(FEATURE_PUNCTUAL)
-        & v.has(FEATURE_INDIRECT)
-        & !v.has(crate::features::FEATURE_VERTEX_NORMALS)
-        & !v.has(crate::features::FEATURE_TEXTURES)
-        & (v.max_bounces > 0)
-}
-
-/// The first vertex of a light subpath: a point on an emitting triangle (picked as next-event
-/// estimation picks it), a cosine-distributed direction, the surface it reaches.
-#[derive(Clone, Copy)]
-pub(crate) struct LightVertex {
-    valid: bool,
-    pos: Vec3,
-    error: Vec3,
-    /// The stored unit normal of the triangle reached.
-    n: Vec3,
-    albedo: Vec3,
-    /// Unit direction from the vertex to the point on the light.
-    to_light: Vec3,
-    dist2: f32,
-    cos_l: f32,
-    /// The light point's area density (pmf / area).
-    pa: f32,
-    /// Emission * pi / pa: the subpath's weight at the vertex, before the vertex's BSDF.
-    power: Vec3,
-}
-
-impl LightVertex {
-    const NONE: LightVertex = LightVertex {
-        valid: false,
-        pos: Vec3::ZERO,
-        error: Vec3::ZERO,
-        n: Vec3::ZERO,
-        albedo: Vec3::ZERO,
-        to_light: Vec3::ZERO,
-        dist2: 0.0,
-        cos_l: 0.0,
-        pa: 0.0,
-        power: Vec3::ZERO,
-    };
-}
-
-#[inline(always)]
-fn light_vertex(scene: &SceneView, p: &RenderParams, v: Variant, rng: &Sampler) -> LightVertex {
-    let [ua, ub, uc, ud] = rng.independent_4d(CONNECT_TAG);
-    let many = v.has(FEATURE_MANY_EMITTERS);
-    let index = if many { select_light(scene.lights, scene.light_count, ua) } else { 0 };
-    let light = scene.lights[index as usize];
-    let u1 = if many { remap_in_light(scene.lights, index, ua) } else { ua };
-    if light.triangle >= LIGHT_NOT_TRIANGLE {
-        return LightVertex::NONE;
-    }
-    let ltri = &scene.triangles[light.triangle as usize];
-    let lmat = &scene.materials[scene.info[light.triangle as usize].material as usize];
-    let le = Vec3::new(lmat.emission.x, lmat.emission.y, lmat.emission.z);
-    let (b0, b1, b2) = uniform_triangle(u1, ub);
-    let on_light = interpolate(ltri, b0, b1, b2);
-    let nl = stored_normal(ltri);
-    let local = cosine_hemisphere(uc, ud);
-    let (tb, bb) = orthonormal_basis(nl);
-    let dir = tb * local.x + bb * local.y + nl * local.z;
-    if !(local.z > 0.0) | !((le.x > 0.0) | (le.y > 0.0) | (le.z > 0.0)) {
-        return LightVertex::NONE;
-    }
-    let origin = offset_ray_origin(on_light.p, on_light.error, nl);
-    let hit = query_recorded(scene, p.traversal, origin, dir, f32::MAX, false, &mut NoRecord).hit;
-    if !hit.is_hit() {
-        return LightVertex::NONE;
-    }
-    let tri = &scene.triangles[hit.triangle as usize];
-    let m = &scene.materials[scene.info[hit.triangle as usize].material as usize];
-    let albedo = Vec3::new(m.albedo.x, m.albedo.y, m.albedo.z);
-    let surface = hit_point(tri, &TriangleHit { t: hit.t, u: hit.u, v: hit.v, w: hit.w });
-    let len2 = length_squared(dir);
-    let pa = light.pmf / light.area;
-    LightVertex {
-        valid: (albedo.x > 0.0) | (albedo.y > 0.0) | (albedo.z > 0.0),
-        pos: surface.p,
-        error: surface.error,
-        n: stored_normal(tri),
-        albedo,
-        to_light: -(dir * (1.0 / len2.sqrt())),
-        dist2: hit.t * hit.t * len2,
-        cos_l: local.z,
-        pa,
-        power: le * (core::f32::consts::PI / pa),
-    }
-}
-
-/// The connection strategy at an eye vertex (Lambertian, flat normal `nf` toward the ray's
-/// origin): its path through the light subpath's vertex, MIS-weighted against the path
-/// tracer's two ways of making the same path.
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn connect<R: Recorder>(
-    scene: &SceneView,
-    p: &RenderParams,
-    lv: &LightVertex,
-    pos: Vec3,
-    spawn: Vec3,
-    nf: Vec3,
-    albedo: Vec3,
-    beta: Vec3,
-    radiance: &mut Vec3,
-    rec: &mut R,
-) {
-    let d = lv.pos - pos;
-    let dist2 = dot(d, d);
-    let w = d * (1.0 / dist2.sqrt());
-    let cos_e = dot(nf, w);
-    let cos_ye = dot(lv.n, w);
-    let nfy = if cos_ye < 0.0 { lv.n } else { -lv.n };
-    let cos_yl = dot(nfy, lv.to_light);
-    if lv.valid & (cos_e > 0.0) & (cos_yl > 0.0) & (dist2 > 0.0) {
-        let a = cos_e * INV_PI * cos_ye.abs() / dist2;
-        let q0 = cos_yl * INV_PI;
-        let q1 = lv.pa * lv.dist2 / lv.cos_l;
-        let q2 = lv.pa * cos_yl * INV_PI / a;
-        let w2 = power_heuristic3(q2, q0, q1);
-        let target = offset_ray_origin(lv.pos, lv.error, nfy);
-        let (shadow_dir, shadow_t) = (target - spawn, 1.0 - SHADOW_EPSILON);
-        rec.ray(RAY_SHADOW, spawn, shadow_dir, shadow_t);
-        let shadow = query_recorded(scene, p.traversal, spawn, shadow_dir, shadow_t, true, rec);
-        rec.traced(shadow.hit.triangle, shadow.hit.t, shadow.hit.nodes, shadow.hit.tests, shadow.restarts);
-        if !shadow.hit.is_hit() {
-            let g = INV_PI * INV_PI * cos_e * cos_ye.abs() / dist2 * w2;
-            *radiance += beta * albedo * lv.albedo * lv.power * g;
-        }
     }
 }

@@ -386,6 +386,13 @@ pub struct RenderParams {
     /// 1 + the environment map's first word in the texture buffer (`environment`), or
     /// `NO_ENVIRONMENT_MAP`.
     pub environment_map: u32,
+    /// 1: light subpaths connect to the eye vertices (`features::FEATURE_CONNECT`); the host
+    /// sets it only where `features::connection_applies`.
+    pub connect: u32,
+    /// To a multiple of 16 bytes (scalars: a uniform block's arrays would need a 16-byte stride).
+    pub _pad0: u32,
+    pub _pad1: u32,
+    pub _pad2: u32,
 }
 
 /// k-d traversal with a stack as deep as the tree (`kdtree`).

@@ -19,6 +19,7 @@
 pub use spirv_std::glam;
 
 pub mod camera;
+pub mod connection;
 pub mod environment;
 pub mod exp;
 pub mod features;

@@ -212,4 +212,24 @@ mod tests {
         assert_eq!(power_heuristic(f32::INFINITY, 1.0), 1.0);
         assert!((power_heuristic(1.0, 1.0) - 0.5).abs() < 1e-7);
     }
+
+    #[test]
+    fn three_strategies_weights_sum_to_one() {
+        let mut state = 0x1234_5678u32;
+        for _ in 0..1000 {
+            let mut next = || {
+                state = state.wrapping_mul(747_796_405).wrapping_add(2_891_336_453);
+                (state >> 8) as f32 / (1u32 << 24) as f32 * 10.0
+            };
+            let (f, g, h) = (next(), next(), next());
+            let sum = power_heuristic3(f, g, h) + power_heuristic3(g, h, f) + power_heuristic3(h, f, g);
+            assert!((sum - 1.0).abs() < 1e-5, "{f} {g} {h}: {sum}");
+        }
+        // With the third density zero it is the two-strategy heuristic, bit for bit.
+        for (f, g) in [(1.0, 2.0), (0.3, 0.0), (1e-20, 3e-21), (7.0, 7.0)] {
+            assert_eq!(power_heuristic3(f, g, 0.0).to_bits(), power_heuristic(f, g).to_bits(), "{f} {g}");
+        }
+        assert_eq!(power_heuristic3(0.0, 0.0, 0.0), 0.0);
+        assert_eq!(power_heuristic3(f32::INFINITY, 1.0, 1.0), 1.0);
+    }
 }

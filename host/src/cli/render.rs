@@ -12,7 +12,7 @@ use crate::render::partial::{self, Header, ImageSettings, Partial};
 use crate::render::progressive::Progressive;
 use crate::render::{Compiled, Rendered};
 use crate::settings::RenderSettings;
-use crate::settings::{Adaptive, Aov, Dispatch, SamplerKind, Traversal};
+use crate::settings::{Adaptive, Aov, Connect, Dispatch, SamplerKind, Traversal};
 use anyhow::{anyhow, bail, Result};
 use clap::Args;
 use serde::Serialize;
@@ -131,6 +131,7 @@ struct RenderReport<'a> {
     bounces: u32,
     seed: u32,
     sampler: SamplerKind,
+    connect: Connect,
     load_s: f64,
     build_s: f64,
     prepare_s: f64,
@@ -324,6 +325,7 @@ pub fn run(r: RenderArgs) -> Result<ExitCode> {
             bounces: s.max_bounces,
             seed: s.seed,
             sampler: s.sampler,
+            connect: s.connect,
             load_s: loaded.load_s,
             build_s: loaded.build_s,
             prepare_s: loaded.prepare_s,

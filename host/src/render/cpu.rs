@@ -8,9 +8,9 @@ use crate::settings::{Aov, RenderSettings};
 use anyhow::{bail, Result};
 use rayon::prelude::*;
 use shared::features::{
-    FEATURES_ALL, FEATURE_ALPHA_MASKS, FEATURE_DIFFUSE, FEATURE_EMITTERS, FEATURE_ENVIRONMENT, FEATURE_ENVIRONMENT_MAP,
-    FEATURE_INDIRECT, FEATURE_MANY_EMITTERS, FEATURE_MATERIALS, FEATURE_PUNCTUAL, FEATURE_TEXTURES,
-    FEATURE_VERTEX_NORMALS,
+    connection_applies, FEATURES_ALL, FEATURE_ALPHA_MASKS, FEATURE_CONNECT, FEATURE_DIFFUSE, FEATURE_EMITTERS,
+    FEATURE_ENVIRONMENT, FEATURE_ENVIRONMENT_MAP, FEATURE_INDIRECT, FEATURE_MANY_EMITTERS, FEATURE_MATERIALS,
+    FEATURE_PUNCTUAL, FEATURE_TEXTURES, FEATURE_VERTEX_NORMALS,
 };
 use shared::glam::Vec4;
 use shared::integrator::render_runs_for;
@@ -36,29 +36,32 @@ pub type VariantFn = fn(&SceneView, &RenderParams, u32, u32, u32, u32, u32, &mut
 
 /// The compiled variants: every combination of the feature bits outside the materials and the
 /// surface bits, each for diffuse alone and for every material kind, and all of those once
-/// without and once with the surface bits (`cpu_variant_bits`): `VARIANTS[i]` is
+/// without and once with the surface bits; then the four that connect light subpaths
+/// (`FEATURE_CONNECT`: Lambertian, emitting triangles and indirect light, with or without more
+/// than one emitter and a constant environment) (`cpu_variant_bits`): `VARIANTS[i]` is
 /// `render_runs_for::<{ CANONICAL[i] }>`, and `LANE_VARIANTS[i]` the same through
 /// `shared::lanes::integrator::render_runs_for`, which renders sixteen samples of a pixel at
 /// once and the same image bit for bit (it covers every variant).
 macro_rules! variants {
     ($($bits:literal)*) => {
         #[cfg_attr(not(test), allow(dead_code))]
-        const CANONICAL: [u32; 64] = [$($bits),*];
-        static VARIANTS: [VariantFn; 64] = [$(render_runs_for::<$bits> as VariantFn),*];
+        const CANONICAL: [u32; 68] = [$($bits),*];
+        static VARIANTS: [VariantFn; 68] = [$(render_runs_for::<$bits> as VariantFn),*];
         /// The same variants compiled for AVX-512 (`avx512::render_samples`).
         #[cfg(target_arch = "x86_64")]
-        static VARIANTS_AVX512: [VariantFn; 64] = [$(avx512::render_samples::<$bits> as VariantFn),*];
-        static LANE_VARIANTS: [VariantFn; 64] = [$(lanes_render_runs_for::<$bits> as VariantFn),*];
+        static VARIANTS_AVX512: [VariantFn; 68] = [$(avx512::render_samples::<$bits> as VariantFn),*];
+        static LANE_VARIANTS: [VariantFn; 68] = [$(lanes_render_runs_for::<$bits> as VariantFn),*];
         /// The same compiled for AVX-512 (`avx512::render_samples_lanes`).
         #[cfg(target_arch = "x86_64")]
-        static LANE_VARIANTS_AVX512: [VariantFn; 64] = [$(avx512::render_samples_lanes::<$bits> as VariantFn),*];
+        static LANE_VARIANTS_AVX512: [VariantFn; 68] = [$(avx512::render_samples_lanes::<$bits> as VariantFn),*];
     };
 }
 variants!(
     8 9 10 11 12 13 14 15 24 25 26 27 28 29 30 12319
     488 489 490 491 492 493 494 495 504 505 506 507 508 509 510 12799
     3592 3593 3594 3595 3596 3597 3598 3599 3608 3609 3610 3611 3612 3613 3614 15903
-    4072 4073 4074 4075 4076 4077 4078 4079 4088 4089 4090 4091 4092 4093 4094 16383
+    4072 4073 4074 4075 4076 4077 4078 4079 4088 4089 4090 4091 4092 4093 4094 32767
+    16409 16411 16413 16415
 );
 
 /// Whether the CPU's variant comes from `LANE_VARIANTS`: unless the render is not specialised
@@ -84,17 +87,25 @@ pub fn runs_lanes(s: &RenderSettings) -> bool {
 ///
 /// The environment map and punctual lights (`NEW_LIGHTS`) have no variants of their own: a scene
 /// with either, or with every other light bit (`LIGHTS`), gets the variant with all of them,
-/// which keeps the table at 64.
+/// which keeps the table at 64 and the four that connect light subpaths, which have the bits
+/// `connection_applies` allows and no others.
 pub fn cpu_variant_bits(bits: u32) -> u32 {
+    if bits & FEATURE_CONNECT != 0 {
+        // The connections apply to scenes of the bits their variants have; any other set with
+        // them (the generic code) gets the variant with every bit.
+        return if connection_applies(bits) { bits & FEATURES_ALL } else { FEATURES_ALL };
+    }
     let surface = if bits & SURFACE != 0 { SURFACE } else { 0 };
     let mut rest = (bits & FEATURES_ALL & !FEATURE_MATERIALS & !SURFACE) | surface;
     if rest & NEW_LIGHTS != 0 || rest & LIGHTS == LIGHTS {
         rest |= LIGHTS | NEW_LIGHTS;
     }
-    if bits & FEATURE_MATERIALS == FEATURE_DIFFUSE {
-        rest | FEATURE_DIFFUSE
+    let b = if bits & FEATURE_MATERIALS == FEATURE_DIFFUSE { rest | FEATURE_DIFFUSE } else { rest | FEATURE_MATERIALS };
+    // The variant with every other bit reads `RenderParams::connect` as well.
+    if b == FEATURES_ALL & !FEATURE_CONNECT {
+        FEATURES_ALL
     } else {
-        rest | FEATURE_MATERIALS
+        b
     }
 }
 
@@ -110,6 +121,10 @@ const SURFACE: u32 = FEATURE_TEXTURES | FEATURE_ALPHA_MASKS | FEATURE_VERTEX_NOR
 /// count through 16, every material kind adds 16, the surface bits 32.
 fn variant_index(bits: u32) -> usize {
     let b = cpu_variant_bits(bits);
+    if (b & FEATURE_CONNECT != 0) & (b != FEATURES_ALL) {
+        // After the 64: more than one emitter (bit 1) and the environment (bit 2) count to 4.
+        return 64 + ((b >> 1) & 0b11) as usize;
+    }
     let low = (b & 0b111) | ((b & FEATURE_INDIRECT) >> 1);
     let kinds = if b & FEATURE_MATERIALS != FEATURE_DIFFUSE { 16 } else { 0 };
     let surface = if b & SURFACE != 0 { 32 } else { 0 };

@@ -3,12 +3,13 @@
 //! both renderers run (`RenderSettings::specialize`; off, the generic code).
 use crate::render::Compiled;
 use crate::scene::Scene;
-use crate::settings::RenderSettings;
+use crate::settings::{Aov, Connect, RenderSettings};
 use serde::Serialize;
 use shared::features::{
-    FEATURES_ALL, FEATURE_ALPHA_MASKS, FEATURE_CONDUCTOR, FEATURE_DIELECTRIC, FEATURE_DIFFUSE, FEATURE_EMITTERS,
-    FEATURE_ENVIRONMENT, FEATURE_ENVIRONMENT_MAP, FEATURE_INDIRECT, FEATURE_MANY_EMITTERS, FEATURE_PLASTIC,
-    FEATURE_PRINCIPLED, FEATURE_PUNCTUAL, FEATURE_TEXTURES, FEATURE_VERTEX_NORMALS,
+    connection_applies, FEATURES_ALL, FEATURE_ALPHA_MASKS, FEATURE_CONDUCTOR, FEATURE_CONNECT, FEATURE_DIELECTRIC,
+    FEATURE_DIFFUSE, FEATURE_EMITTERS, FEATURE_ENVIRONMENT, FEATURE_ENVIRONMENT_MAP, FEATURE_INDIRECT,
+    FEATURE_MANY_EMITTERS, FEATURE_PLASTIC, FEATURE_PRINCIPLED, FEATURE_PUNCTUAL, FEATURE_TEXTURES,
+    FEATURE_VERTEX_NORMALS,
 };
 use shared::layout::{
     Material, MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, MATERIAL_DIFFUSE, MATERIAL_PLASTIC, MATERIAL_PRINCIPLED,
@@ -38,6 +39,9 @@ pub struct Features {
     pub bounces: u32,
     /// Whether light can reach the camera after a bounce.
     pub indirect: bool,
+    /// Whether light subpaths connect to the eye vertices (`shared::connection`): asked for,
+    /// and the scene allows it.
+    pub connect: bool,
     /// The integrator variant that renders it: "generic", or "specialised" for `bits`.
     pub variant: &'static str,
     /// The feature bits of that variant (`FEATURES_ALL` for the generic code).
@@ -47,7 +51,7 @@ pub struct Features {
 }
 
 /// Each bit's name, as `render --json` and the tests print them.
-pub const FEATURE_NAMES: [(u32, &str); 14] = [
+pub const FEATURE_NAMES: [(u32, &str); 15] = [
     (FEATURE_EMITTERS, "emitters"),
     (FEATURE_MANY_EMITTERS, "many_emitters"),
     (FEATURE_ENVIRONMENT, "environment"),
@@ -62,6 +66,7 @@ pub const FEATURE_NAMES: [(u32, &str); 14] = [
     (FEATURE_VERTEX_NORMALS, "vertex_normals"),
     (FEATURE_ENVIRONMENT_MAP, "environment_map"),
     (FEATURE_PUNCTUAL, "punctual_lights"),
+    (FEATURE_CONNECT, "connect"),
 ];
 
 /// The materials that triangles use (a scene file may define more).
@@ -156,6 +161,12 @@ pub fn analyse(c: &Compiled, s: &RenderSettings) -> Features {
             bits |= bit;
         }
     }
+    // A setting, not a fact of the scene: on where asked for and the scene's other bits allow
+    // it, for the radiance image with a bounce to connect.
+    let connect = s.connect == Connect::On && s.aov == Aov::Radiance && s.max_bounces > 0 && connection_applies(bits);
+    if connect {
+        bits |= FEATURE_CONNECT;
+    }
     Features {
         bits,
         emitters,
@@ -183,6 +194,7 @@ pub fn analyse(c: &Compiled, s: &RenderSettings) -> Features {
         vertex_normals,
         bounces: s.max_bounces,
         indirect,
+        connect,
         variant: if s.specialize { "specialised" } else { "generic" },
         variant_bits: if s.specialize { bits } else { FEATURES_ALL },
         lanes: false,

@@ -272,6 +272,8 @@ impl Compiled {
             sampler: s.sampler.tag(),
             live_count: 0,
             environment_map: self.environment_map,
+            connect: u32::from(crate::render::features::analyse(self, s).connect),
+            ..Default::default()
         })
     }
 

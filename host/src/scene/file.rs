@@ -18,7 +18,7 @@ use crate::scene::texture::{Kind, TextureSet};
 use crate::scene::transform::Placement;
 use crate::scene::{PunctualLight, WorldAttributes, WorldScene};
 use crate::settings::scene::SceneSettings;
-use crate::settings::{SamplerKind, MAX_BOUNCES, MAX_SIDE, MAX_SPP};
+use crate::settings::{Connect, SamplerKind, MAX_BOUNCES, MAX_SIDE, MAX_SPP};
 use anyhow::{anyhow, bail, Context, Result};
 use serde::{Deserialize, Serialize};
 use shared::glam::{DMat3, DVec3, Vec3};
@@ -192,6 +192,10 @@ pub struct RenderSection {
     /// "sobol" (default) or "independent".
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sampler: Option<SamplerKind>,
+    /// "on": light subpaths connect to the eye vertices where the scene allows it; "off"
+    /// (default): path tracing alone.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub connect: Option<Connect>,
     /// Seconds: the render stops between passes of whole samples once they are spent.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub time_limit: Option<Seconds>,
@@ -487,6 +491,7 @@ pub fn settings_of(file: &SceneFile) -> SceneSettings {
         bounces: r.bounces.map(|b| b.0),
         seed: r.seed,
         sampler: r.sampler,
+        connect: r.connect,
         time_limit_s: r.time_limit.map(|t| t.0),
         eye: c.eye.map(|p| p.0),
         target: c.target.map(|p| p.0),
@@ -734,6 +739,7 @@ pub fn with_settings(mut file: SceneFile, s: &SceneSettings) -> Result<SceneFile
         bounces: s.bounces.map(|v| Bounces::try_from(v as i64)).transpose().map_err(|e| anyhow!(e))?,
         seed: s.seed,
         sampler: s.sampler,
+        connect: s.connect,
         time_limit: s.time_limit_s.map(Seconds::try_from).transpose().map_err(|e| anyhow!(e))?,
     };
     // A map stays as the file gives it; a colour is stated in full.

@@ -122,7 +122,7 @@ fn brute_force(scene: &SceneView, p: &RenderParams, live: M) -> bool {
 /// (`split`) in a scene that has one, else one by one
 /// by the chosen traversal, a camera ray group of sixteen as one packet.
 #[inline(always)]
-fn trace_closest(scene: &SceneView, p: &RenderParams, origin: V3, dir: V3, live: M, packet: bool) -> Hits {
+pub(super) fn trace_closest(scene: &SceneView, p: &RenderParams, origin: V3, dir: V3, live: M, packet: bool) -> Hits {
     if brute_force(scene, p, live) {
         return brute::cast(scene.triangles, &[], origin, dir, F::splat(f32::MAX), live, false);
     }
@@ -160,16 +160,16 @@ fn trace_closest(scene: &SceneView, p: &RenderParams, origin: V3, dir: V3, live:
 /// What a vertex needs of the triangles hit (or picked) by the live lanes: vertices, stored
 /// normals, material albedo and emission (the material's constants; its index for texture
 /// lookups), light-table entries.
-struct Gathered {
-    tris: Triangles,
-    albedo: V3,
-    emission: V3,
-    material: [u32; LANES],
-    light: [u32; LANES],
+pub(super) struct Gathered {
+    pub(super) tris: Triangles,
+    pub(super) albedo: V3,
+    pub(super) emission: V3,
+    pub(super) material: [u32; LANES],
+    pub(super) light: [u32; LANES],
 }
 
 #[inline(always)]
-fn gather(scene: &SceneView, triangle: &[u32; LANES], live: M) -> Gathered {
+pub(super) fn gather(scene: &SceneView, triangle: &[u32; LANES], live: M) -> Gathered {
     // Rows of the sixteen lanes' values: v0, v1, v2 (x, y, z), the stored normal, albedo and
     // emission.
     let mut rows = [[0.0f32; LANES]; 18];
@@ -243,8 +243,12 @@ fn trace_paths(
     let lights =
         (v.has(FEATURE_EMITTERS) | v.has(FEATURE_ENVIRONMENT_MAP) | v.has(FEATURE_PUNCTUAL)) & (scene.light_count > 0);
     let many = v.has(FEATURE_MANY_EMITTERS);
-    let bidir = crate::integrator::connects(scene, p, v);
-    let lv = if bidir { light_vertices(scene, p, many, &rng, live) } else { LightVertex::none() };
+    let bidir = crate::connection::connects(scene, p, v);
+    let lv = if bidir {
+        super::connection::light_vertices(scene, p, many, &rng, live)
+    } else {
+        super::connection::LightVertex::none()
+    };
     // The previous vertex's 1 / (pi * its area density from the vertex before), 0 where the
     // connection strategy cannot make the path; and |n . wi| there.
     let (mut prev_inv_pi_a, mut prev_cos) = (zero, zero);
@@ -405,12 +409,13 @@ fn trace_paths(
                 beta,
                 u_select,
                 u_light,
+                bidir,
                 inv_pi_a,
                 &mut radiance,
             );
         }
         if bidir & (bounce < v.max_bounces) {
-            connect(scene, p, &lv, alive, pos, spawn, nf, g.albedo, beta, &mut radiance);
+            super::connection::connect(scene, p, &lv, alive, pos, spawn, nf, g.albedo, beta, &mut radiance);
         }
 
         // The Lambertian BSDF sample (`material::diffuse::sample`) on every lane; no lobe to
@@ -526,6 +531,7 @@ fn next_event(
     beta: V3,
     u_select: F,
     u_light: F,
+    bidir: bool,
     inv_pi_a: F,
     radiance: &mut V3,
 ) {
@@ -621,7 +627,7 @@ fn next_event(
         if (behind & valid).any() { V3::select(behind, offset_ray_origin(pos, error, -nf), spawn) } else { spawn };
     let shadow_dir = target - from;
     let unblocked = unblocked(scene, p, from, shadow_dir, valid);
-    let weight = if crate::integrator::CONNECT {
+    let weight = if bidir {
         let q2 = F::from_array(pmf) / F::from_array(area) * nf.dot(wi).abs() * inv_pi_a;
         power_heuristic3(light_pdf, pdf_bsdf, q2)
     } else {
@@ -634,7 +640,7 @@ fn next_event(
 /// Whether the live lanes' segments `from` to `from + dir` (to 1 - SHADOW_EPSILON of it) are
 /// unblocked.
 #[inline(always)]
-fn unblocked(scene: &SceneView, p: &RenderParams, from: V3, dir: V3, valid: M) -> M {
+pub(super) fn unblocked(scene: &SceneView, p: &RenderParams, from: V3, dir: V3, valid: M) -> M {
     (if brute_force(scene, p, valid) {
         let t_max = F::splat(1.0 - SHADOW_EPSILON);
         brute::cast(scene.triangles, &[], from, dir, t_max, valid, true).triangle.simd_eq(U::splat(NO_HIT))
@@ -649,132 +655,4 @@ fn unblocked(scene: &SceneView, p: &RenderParams, from: V3, dir: V3, valid: M) -
         }
         M::from_array(unblocked)
     }) & valid
-}
-
-/// The first vertex of each lane's light subpath: a point on an emitting triangle (picked as
-/// next-event estimation picks it), a cosine-distributed direction, the surface it reaches.
-struct LightVertex {
-    valid: M,
-    pos: V3,
-    error: F,
-    n: V3,
-    albedo: V3,
-    /// Unit direction from the vertex to the point on the light.
-    to_light: V3,
-    dist2: F,
-    cos_l: F,
-    /// The light point's area density (pmf / area).
-    pa: F,
-    /// Emission * pi / pa: the subpath's weight at the vertex, before the vertex's BSDF.
-    power: V3,
-}
-
-impl LightVertex {
-    fn none() -> Self {
-        let z = F::splat(0.0);
-        LightVertex {
-            valid: M::splat(false),
-            pos: V3::ZERO,
-            error: z,
-            n: V3::ZERO,
-            albedo: V3::ZERO,
-            to_light: V3::ZERO,
-            dist2: z,
-            cos_l: z,
-            pa: z,
-            power: V3::ZERO,
-        }
-    }
-}
-
-#[inline(always)]
-fn light_vertices(scene: &SceneView, p: &RenderParams, many: bool, rng: &LaneSampler, live: M) -> LightVertex {
-    let zero = F::splat(0.0);
-    let [ua, ub, uc, ud] = rng.independent_4d(crate::integrator::CONNECT_TAG);
-    let (mut triangle, mut pmf, mut area, mut u1) = ([0u32; LANES], [0.0f32; LANES], [1.0f32; LANES], ua.to_array());
-    let mut ok = live;
-    for i in 0..LANES {
-        if live.test(i) {
-            let index = if many { select_light(scene.lights, scene.light_count, u1[i]) } else { 0 };
-            let light = scene.lights[index as usize];
-            if many {
-                u1[i] = remap_in_light(scene.lights, index, u1[i]);
-            }
-            if light.triangle >= LIGHT_NOT_TRIANGLE {
-                ok.set(i, false);
-                continue;
-            }
-            (triangle[i], pmf[i], area[i]) = (light.triangle, light.pmf, light.area);
-        }
-    }
-    let lg = gather(scene, &triangle, ok);
-    let (b0, b1, b2) = uniform_triangle(F::from_array(u1), ub);
-    let (q, q_error) = lg.tris.interpolate(b0, b1, b2);
-    let nl = lg.tris.n;
-    let local = cosine_hemisphere(uc, ud);
-    let (tb, bb) = orthonormal_basis(nl);
-    let dir = tb.scale(local.x) + bb.scale(local.y) + nl.scale(local.z);
-    let ok = ok & local.z.simd_gt(zero) & lg.emission.any_positive();
-    let origin = offset_ray_origin(q, q_error, nl);
-    let hits = trace_closest(scene, p, origin, dir, ok, false);
-    let hit = hits.triangle.simd_ne(U::splat(NO_HIT)) & ok;
-    let yg = gather(scene, &hits.triangle.to_array(), hit);
-    let b = weights(hits.u, hits.v, hits.w);
-    let (pos, error) = yg.tris.interpolate(b.0, b.1, b.2);
-    let len2 = dir.dot(dir);
-    let pa = F::from_array(pmf) / F::from_array(area);
-    LightVertex {
-        valid: hit & yg.albedo.any_positive(),
-        pos,
-        error,
-        n: yg.tris.n,
-        albedo: yg.albedo,
-        to_light: -dir.scale(F::splat(1.0) / sqrt(len2)),
-        dist2: hits.t * hits.t * len2,
-        cos_l: local.z,
-        pa,
-        power: lg.emission.scale(F::splat(core::f32::consts::PI) / pa),
-    }
-}
-
-/// The connection strategy at an eye vertex (Lambertian, flat normal `nf` toward the ray's
-/// origin): its path through the light subpath's vertex, MIS-weighted against the path
-/// tracer's two ways of making the same path.
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn connect(
-    scene: &SceneView,
-    p: &RenderParams,
-    lv: &LightVertex,
-    alive: M,
-    pos: V3,
-    spawn: V3,
-    nf: V3,
-    albedo: V3,
-    beta: V3,
-    radiance: &mut V3,
-) {
-    let zero = F::splat(0.0);
-    let d = lv.pos - pos;
-    let dist2 = d.dot(d);
-    let w = d.scale(F::splat(1.0) / sqrt(dist2));
-    let cos_e = nf.dot(w);
-    let cos_ye = lv.n.dot(w);
-    let nfy = V3::select(cos_ye.simd_lt(zero), lv.n, -lv.n);
-    let cos_yl = nfy.dot(lv.to_light);
-    let valid = alive & lv.valid & cos_e.simd_gt(zero) & cos_yl.simd_gt(zero) & dist2.simd_gt(zero);
-    if !valid.any() {
-        return;
-    }
-    let inv_pi = F::splat(INV_PI);
-    let a = cos_e * inv_pi * cos_ye.abs() / dist2;
-    let q0 = cos_yl * inv_pi;
-    let q1 = lv.pa * lv.dist2 / lv.cos_l;
-    let q2 = lv.pa * cos_yl * inv_pi / a;
-    let w2 = power_heuristic3(q2, q0, q1);
-    let target = offset_ray_origin(lv.pos, lv.error, nfy);
-    let open = unblocked(scene, p, spawn, target - spawn, valid);
-    let g = inv_pi * inv_pi * cos_e * cos_ye.abs() / dist2 * w2;
-    let added = (beta * albedo * lv.albedo * lv.power).scale(g);
-    *radiance = V3::select(open, *radiance + added, *radiance);
 }

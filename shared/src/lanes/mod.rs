@@ -29,6 +29,7 @@ use core::simd::cmp::SimdPartialOrd;
 use core::simd::{Mask, Select, Simd};
 
 pub mod brute;
+pub mod connection;
 pub mod integrator;
 pub mod sampler;
 pub mod split;

@@ -1,0 +1,183 @@
+//! Light subpaths connected to the eye vertices: a third way of making a path besides the path
+//! tracer's BSDF sampling and next-event estimation, for light that reaches the camera after two
+//! or more diffuse bounces (Veach 1997, ch. 10, the bidirectional estimator with a light subpath
+//! of one segment; Veach & Guibas 1995 for the weights).
+//!
+//! Each camera sample traces one light subpath: a point on an emitting triangle, picked as
+//! next-event estimation picks it, and a cosine-distributed direction to the first surface it
+//! reaches, `y`. Every eye vertex below the bounce limit joins `y` with a shadow ray. The power
+//! heuristic weighs the three strategies that can make a path through `y` and the light: the
+//! density of each is a product over the path's last two segments, so the integrator's
+//! emitter-hit and light-sample weights take the third density from `inv_pi_area` of the eye
+//! vertex before, and the three weights of a path sum to one.
+//!
+//! It serves scenes where `features::connection_applies`: Lambertian vertices at both ends (the
+//! BSDF is albedo / pi), flat normals, emitting triangles. `RenderParams::connect` switches it on
+//! and `FEATURE_CONNECT` compiles it; the lane integrator runs the same estimator sixteen samples
+//! at a time (`lanes::integrator`).
+use crate::features::{Variant, FEATURE_CONNECT, FEATURE_MANY_EMITTERS};
+use crate::glam::Vec3;
+use crate::integrator::SHADOW_EPSILON;
+use crate::layout::{RenderParams, AOV_RADIANCE, LIGHT_NOT_TRIANGLE};
+use crate::numerics::offset_ray_origin;
+use crate::raycast::query_recorded;
+use crate::record::{NoRecord, Recorder, RAY_SHADOW};
+use crate::rng::Sampler;
+use crate::sampling::{
+    cosine_hemisphere, orthonormal_basis, power_heuristic3, remap_in_light, select_light, uniform_triangle, INV_PI,
+};
+use crate::scene::SceneView;
+use crate::triangle::{hit_point, interpolate, stored_normal, TriangleHit};
+use crate::vecmath::{dot, length_squared};
+#[allow(unused_imports)]
+use spirv_std::num_traits::Float;
+
+/// The hash key of the light subpath's uniforms (`Sampler::independent_4d`).
+pub const CONNECT_TAG: u32 = 0xB1D1_0001;
+
+/// Whether the connection strategy runs for variant `v` with `p`: compiled in (`FEATURE_CONNECT`),
+/// asked for (`RenderParams::connect`, which the host sets only where the scene's features allow
+/// it), the radiance image, a light to start from and a bounce to connect.
+#[inline(always)]
+pub fn connects(scene: &SceneView, p: &RenderParams, v: Variant) -> bool {
+    v.has(FEATURE_CONNECT) & (p.connect != 0) & (p.aov == AOV_RADIANCE) & (scene.light_count > 0) & (v.max_bounces > 0)
+}
+
+/// 1 / (pi * the area density at a vertex reached by a BSDF sample of solid-angle density
+/// `bsdf_pdf` along `dir` (any length) at parameter `t`, `n` its geometric normal): times the
+/// light point's area density and the cosine there, the density of the connection strategy
+/// making the path (the connection's Lambertian pdf at the vertex is |cos| / pi).
+#[inline(always)]
+pub fn inv_pi_area(bsdf_pdf: f32, n: Vec3, dir: Vec3, t: f32) -> f32 {
+    let len2 = length_squared(dir);
+    let a = bsdf_pdf * dot(n, dir).abs() / (len2.sqrt() * len2 * t * t);
+    1.0 / (core::f32::consts::PI * a)
+}
+
+/// The first vertex of a light subpath: a point on an emitting triangle (picked as next-event
+/// estimation picks it), a cosine-distributed direction, the surface it reaches.
+// `repr(C)`: in Rust's own order the fields' offsets need not rise with their index in the
+// SPIR-V struct, which naga rejects ("overlaps the previous member").
+#[repr(C)]
+#[derive(Clone, Copy)]
+pub struct LightVertex {
+    pos: Vec3,
+    error: Vec3,
+    /// The stored unit normal of the triangle reached.
+    n: Vec3,
+    albedo: Vec3,
+    /// Unit direction from the vertex to the point on the light.
+    to_light: Vec3,
+    dist2: f32,
+    cos_l: f32,
+    /// The light point's area density (pmf / area).
+    pa: f32,
+    /// Emission * pi / pa: the subpath's weight at the vertex, before the vertex's BSDF.
+    power: Vec3,
+    valid: bool,
+}
+
+impl LightVertex {
+    pub const NONE: LightVertex = LightVertex {
+        pos: Vec3::ZERO,
+        error: Vec3::ZERO,
+        n: Vec3::ZERO,
+        albedo: Vec3::ZERO,
+        to_light: Vec3::ZERO,
+        dist2: 0.0,
+        cos_l: 0.0,
+        pa: 0.0,
+        power: Vec3::ZERO,
+        valid: false,
+    };
+}
+
+/// Traces the light subpath of the sampler's sample (its uniforms keyed by `CONNECT_TAG`).
+#[inline(always)]
+pub fn light_vertex(scene: &SceneView, p: &RenderParams, v: Variant, rng: &Sampler) -> LightVertex {
+    let [ua, ub, uc, ud] = rng.independent_4d(CONNECT_TAG);
+    let many = v.has(FEATURE_MANY_EMITTERS);
+    let index = if many { select_light(scene.lights, scene.light_count, ua) } else { 0 };
+    let light = scene.lights[index as usize];
+    let u1 = if many { remap_in_light(scene.lights, index, ua) } else { ua };
+    if light.triangle >= LIGHT_NOT_TRIANGLE {
+        return LightVertex::NONE;
+    }
+    let ltri = &scene.triangles[light.triangle as usize];
+    let lmat = &scene.materials[scene.info[light.triangle as usize].material as usize];
+    let le = Vec3::new(lmat.emission.x, lmat.emission.y, lmat.emission.z);
+    let (b0, b1, b2) = uniform_triangle(u1, ub);
+    let on_light = interpolate(ltri, b0, b1, b2);
+    let nl = stored_normal(ltri);
+    let local = cosine_hemisphere(uc, ud);
+    let (tb, bb) = orthonormal_basis(nl);
+    let dir = tb * local.x + bb * local.y + nl * local.z;
+    if !(local.z > 0.0) | !((le.x > 0.0) | (le.y > 0.0) | (le.z > 0.0)) {
+        return LightVertex::NONE;
+    }
+    let origin = offset_ray_origin(on_light.p, on_light.error, nl);
+    let hit = query_recorded(scene, p.traversal, origin, dir, f32::MAX, false, &mut NoRecord).hit;
+    if !hit.is_hit() {
+        return LightVertex::NONE;
+    }
+    let tri = &scene.triangles[hit.triangle as usize];
+    let m = &scene.materials[scene.info[hit.triangle as usize].material as usize];
+    let albedo = Vec3::new(m.albedo.x, m.albedo.y, m.albedo.z);
+    let surface = hit_point(tri, &TriangleHit { t: hit.t, u: hit.u, v: hit.v, w: hit.w });
+    let len2 = length_squared(dir);
+    let pa = light.pmf / light.area;
+    LightVertex {
+        valid: (albedo.x > 0.0) | (albedo.y > 0.0) | (albedo.z > 0.0),
+        pos: surface.p,
+        error: surface.error,
+        n: stored_normal(tri),
+        albedo,
+        to_light: -(dir * (1.0 / len2.sqrt())),
+        dist2: hit.t * hit.t * len2,
+        cos_l: local.z,
+        pa,
+        power: le * (core::f32::consts::PI / pa),
+    }
+}
+
+/// The connection strategy at an eye vertex (Lambertian, flat normal `nf` toward the ray's
+/// origin): its path through the light subpath's vertex, MIS-weighted against the path
+/// tracer's two ways of making the same path.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub fn connect<R: Recorder>(
+    scene: &SceneView,
+    p: &RenderParams,
+    lv: &LightVertex,
+    pos: Vec3,
+    spawn: Vec3,
+    nf: Vec3,
+    albedo: Vec3,
+    beta: Vec3,
+    radiance: &mut Vec3,
+    rec: &mut R,
+) {
+    let d = lv.pos - pos;
+    let dist2 = dot(d, d);
+    let w = d * (1.0 / dist2.sqrt());
+    let cos_e = dot(nf, w);
+    let cos_ye = dot(lv.n, w);
+    let nfy = if cos_ye < 0.0 { lv.n } else { -lv.n };
+    let cos_yl = dot(nfy, lv.to_light);
+    if lv.valid & (cos_e > 0.0) & (cos_yl > 0.0) & (dist2 > 0.0) {
+        let a = cos_e * INV_PI * cos_ye.abs() / dist2;
+        let q0 = cos_yl * INV_PI;
+        let q1 = lv.pa * lv.dist2 / lv.cos_l;
+        let q2 = lv.pa * cos_yl * INV_PI / a;
+        let w2 = power_heuristic3(q2, q0, q1);
+        let target = offset_ray_origin(lv.pos, lv.error, nfy);
+        let (shadow_dir, shadow_t) = (target - spawn, 1.0 - SHADOW_EPSILON);
+        rec.ray(RAY_SHADOW, spawn, shadow_dir, shadow_t);
+        let shadow = query_recorded(scene, p.traversal, spawn, shadow_dir, shadow_t, true, rec);
+        rec.traced(shadow.hit.triangle, shadow.hit.t, shadow.hit.nodes, shadow.hit.tests, shadow.restarts);
+        if !shadow.hit.is_hit() {
+            let g = INV_PI * INV_PI * cos_e * cos_ye.abs() / dist2 * w2;
+            *radiance += beta * albedo * lv.albedo * lv.power * g;
+        }
+    }
+}

@@ -78,6 +78,10 @@ LADDERS = {
     "kdtrace-cpu-kd": [4, 16, 64, 256, 1024],
     # The generic integrator (`--specialize off`): what specialisation alone buys.
     "kdtrace-cpu-generic": [4, 16, 64, 256, 1024],
+    # Light subpaths connected to the eye vertices, and path tracing alone (`--connect on|off`):
+    # what the connections alone buy.
+    "kdtrace-cpu-connect": [4, 16, 64, 256, 1024],
+    "kdtrace-cpu-pathtrace": [4, 16, 64, 256, 1024],
     # Adaptive sampling: the rungs are thresholds (`--adaptive`), each pixel up to 8192 spp.
     "kdtrace-cpu-adaptive": [0.2, 0.1, 0.05, 0.03, 0.02],
     "kdtrace-cpu-asyougo": [0.2, 0.1, 0.05, 0.03, 0.02],
@@ -122,6 +126,8 @@ def render(renderer, scene, spp, seed, out, a):
             "-independent": ["--sampler", "independent"],
             "-generic": ["--specialize", "off"],
             "-kd": ["--traversal", "full"],
+            "-connect": ["--connect", "on"],
+            "-pathtrace": ["--connect", "off"],
             "-adaptive": ["--adaptive", str(spp), "--adaptive-mode", "pilot"],
             "-asyougo": ["--adaptive", str(spp), "--adaptive-mode", "as-you-go"],
         }

@@ -23,9 +23,7 @@ use crate::numerics::offset_ray_origin;
 use crate::raycast::query_recorded;
 use crate::record::{NoRecord, Recorder, RAY_SHADOW};
 use crate::rng::Sampler;
-use crate::sampling::{
-    cosine_hemisphere, orthonormal_basis, power_heuristic3, remap_in_light, select_light, uniform_triangle, INV_PI,
-};
+use crate::sampling::{cosine_hemisphere, orthonormal_basis, pick_light, power_heuristic3, uniform_triangle, INV_PI};
 use crate::scene::SceneView;
 use crate::triangle::{hit_point, interpolate, stored_normal, TriangleHit};
 use crate::vecmath::{dot, length_squared};
@@ -43,15 +41,17 @@ pub fn connects(scene: &SceneView, p: &RenderParams, v: Variant) -> bool {
     v.has(FEATURE_CONNECT) & (p.connect != 0) & (p.aov == AOV_RADIANCE) & (scene.light_count > 0) & (v.max_bounces > 0)
 }
 
-/// 1 / (pi * the area density at a vertex reached by a BSDF sample of solid-angle density
-/// `bsdf_pdf` along `dir` (any length) at parameter `t`, `n` its geometric normal): times the
-/// light point's area density and the cosine there, the density of the connection strategy
-/// making the path (the connection's Lambertian pdf at the vertex is |cos| / pi).
+/// 1 / (pi * the area density at a vertex reached from a Lambertian vertex by a cosine-sampled
+/// direction `dir` (any length) at parameter `t`, `prev_cos` the cosine there, `n` the normal
+/// reached): times the light point's area density and the cosine there, the density of the
+/// connection strategy making the path (the connection's Lambertian pdf at the vertex is
+/// |cos| / pi). The sample's density prev_cos / pi times |cos| / dist² is the area density,
+/// so pi cancels. Written without the constant, the kernel computes what the CPU does: the
+/// SPIR-V optimiser rewrites `1 / (pi * x)` as `(1 / pi) / x`, which rounds differently.
 #[inline(always)]
-pub fn inv_pi_area(bsdf_pdf: f32, n: Vec3, dir: Vec3, t: f32) -> f32 {
+pub fn inv_pi_area(prev_cos: f32, n: Vec3, dir: Vec3, t: f32) -> f32 {
     let len2 = length_squared(dir);
-    let a = bsdf_pdf * dot(n, dir).abs() / (len2.sqrt() * len2 * t * t);
-    1.0 / (core::f32::consts::PI * a)
+    len2.sqrt() * len2 * t * t / (prev_cos * dot(n, dir).abs())
 }
 
 /// The first vertex of a light subpath: a point on an emitting triangle (picked as next-event
@@ -72,7 +72,9 @@ pub struct LightVertex {
     cos_l: f32,
     /// The light point's area density (pmf / area).
     pa: f32,
-    /// Emission * pi / pa: the subpath's weight at the vertex, before the vertex's BSDF.
+    /// Emission / (pi pa): the subpath's weight at the vertex (emission * pi / pa) times the
+    /// 1 / pi² of the two Lambertian BSDFs a connection evaluates (their albedos apart);
+    /// `INV_PI / pa`, the form the SPIR-V optimiser leaves as it is.
     power: Vec3,
     valid: bool,
 }
@@ -97,9 +99,8 @@ impl LightVertex {
 pub fn light_vertex(scene: &SceneView, p: &RenderParams, v: Variant, rng: &Sampler) -> LightVertex {
     let [ua, ub, uc, ud] = rng.independent_4d(CONNECT_TAG);
     let many = v.has(FEATURE_MANY_EMITTERS);
-    let index = if many { select_light(scene.lights, scene.light_count, ua) } else { 0 };
+    let (index, u1) = pick_light(scene.lights, scene.light_count, many, ua);
     let light = scene.lights[index as usize];
-    let u1 = if many { remap_in_light(scene.lights, index, ua) } else { ua };
     if light.triangle >= LIGHT_NOT_TRIANGLE {
         return LightVertex::NONE;
     }
@@ -136,7 +137,7 @@ pub fn light_vertex(scene: &SceneView, p: &RenderParams, v: Variant, rng: &Sampl
         dist2: hit.t * hit.t * len2,
         cos_l: local.z,
         pa,
-        power: le * (core::f32::consts::PI / pa),
+        power: le * (INV_PI / pa),
     }
 }
 
@@ -165,10 +166,14 @@ pub fn connect<R: Recorder>(
     let nfy = if cos_ye < 0.0 { lv.n } else { -lv.n };
     let cos_yl = dot(nfy, lv.to_light);
     if lv.valid & (cos_e > 0.0) & (cos_yl > 0.0) & (dist2 > 0.0) {
-        let a = cos_e * INV_PI * cos_ye.abs() / dist2;
+        // The connecting segment's geometry term. The densities of the three strategies over the
+        // path's last two segments: the light vertex's BSDF sample toward the eye vertex, with
+        // the light sample there (q0); the light subpath (q1); the connection (q2:
+        // pa * (cos_yl / pi) over the eye vertex's area density from y, geo / pi).
+        let geo = cos_e * cos_ye.abs() / dist2;
         let q0 = cos_yl * INV_PI;
         let q1 = lv.pa * lv.dist2 / lv.cos_l;
-        let q2 = lv.pa * cos_yl * INV_PI / a;
+        let q2 = lv.pa * cos_yl / geo;
         let w2 = power_heuristic3(q2, q0, q1);
         let target = offset_ray_origin(lv.pos, lv.error, nfy);
         let (shadow_dir, shadow_t) = (target - spawn, 1.0 - SHADOW_EPSILON);
@@ -176,8 +181,7 @@ pub fn connect<R: Recorder>(
         let shadow = query_recorded(scene, p.traversal, spawn, shadow_dir, shadow_t, true, rec);
         rec.traced(shadow.hit.triangle, shadow.hit.t, shadow.hit.nodes, shadow.hit.tests, shadow.restarts);
         if !shadow.hit.is_hit() {
-            let g = INV_PI * INV_PI * cos_e * cos_ye.abs() / dist2 * w2;
-            *radiance += beta * albedo * lv.albedo * lv.power * g;
+            *radiance += beta * albedo * lv.albedo * lv.power * (geo * w2);
         }
     }
 }

@@ -35,7 +35,7 @@ use crate::record::{
     END_ROULETTE, LIGHT_BLOCKED, LIGHT_DELTA, LIGHT_INVALID, LIGHT_UNBLOCKED, RAY_BOUNCE, RAY_CAMERA, RAY_SHADOW,
 };
 use crate::rng::Sampler;
-use crate::sampling::{power_heuristic, power_heuristic3, remap_in_light, select_light, uniform_triangle};
+use crate::sampling::{pick_light, power_heuristic, power_heuristic3, uniform_triangle};
 use crate::scene::SceneView;
 use crate::surface::{consistent, emission_at, hit_weights, material_at, shading_normal};
 #[cfg(not(target_arch = "spirv"))]
@@ -314,7 +314,7 @@ fn shade_vertex<R: Recorder>(
     let ns = shading_normal(scene, v, hit.triangle, hit_weights(hit), nf, wo);
     // This vertex's area density from the vertex before (BSDF-sampled there), for the
     // connection strategy's MIS weight.
-    let inv_pi_a = if path.bidir & (path.bounce > 0) { inv_pi_area(path.bsdf_pdf, n, dir, hit.t) } else { 0.0 };
+    let inv_pi_a = if path.bidir & (path.bounce > 0) { inv_pi_area(path.prev_cos, n, dir, hit.t) } else { 0.0 };
 
     // A smooth mirror reflects no sampled light: its reflection of an emitter counts in full
     // when the BSDF ray hits it (`DELTA_PDF` takes the whole MIS weight).
@@ -324,9 +324,8 @@ fn shade_vertex<R: Recorder>(
         // points stay stratified over a light made of several triangles (a quad lamp). With one
         // light the pick is light 0 and the rescaling the identity (its interval is [0, 1]).
         let many = v.has(FEATURE_MANY_EMITTERS);
-        let index = if many { select_light(scene.lights, scene.light_count, u_select) } else { 0 };
+        let (index, u1) = pick_light(scene.lights, scene.light_count, many, u_select);
         let light = scene.lights[index as usize];
-        let u1 = if many { remap_in_light(scene.lights, index, u_select) } else { u_select };
         let other = (v.has(FEATURE_ENVIRONMENT_MAP) | v.has(FEATURE_PUNCTUAL)) & (light.triangle >= LIGHT_NOT_TRIANGLE);
         if other {
             sample_other_light(

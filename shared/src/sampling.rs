@@ -114,6 +114,19 @@ pub fn remap_in_light(lights: &[Light], index: u32, u: f32) -> f32 {
     remap_between(lo, lights[index as usize].cdf, u)
 }
 
+/// The light that `u` picks and `u` rescaled within its interval, as next-event estimation and
+/// the light subpath pick one: with several lights (`many`) by `select_light` and
+/// `remap_in_light`; with one, light 0 and `u` itself (its interval is [0, 1]).
+#[inline(always)]
+pub fn pick_light(lights: &[Light], count: u32, many: bool, u: f32) -> (u32, f32) {
+    if many {
+        let index = select_light(lights, count, u);
+        (index, remap_in_light(lights, index, u))
+    } else {
+        (0, u)
+    }
+}
+
 /// `u`, which fell in a cdf's interval [lo, hi), rescaled to [0, 1).
 #[inline]
 pub fn remap_between(lo: f32, hi: f32, u: f32) -> f32 {

@@ -397,6 +397,9 @@ pub(crate) struct CpuSums<'a> {
     c: &'a Compiled,
     /// The settings, the traversal resolved for the CPU.
     s: RenderSettings,
+    /// `s`'s parameters, found once (`Compiled::params` analyses the scene); each pass sets its
+    /// samples.
+    params: RenderParams,
     render_samples: VariantFn,
     sum: Vec<Vec4>,
     sum_sq: Vec<Vec4>,
@@ -416,6 +419,7 @@ impl<'a> CpuSums<'a> {
         let n = s.width as usize * s.height as usize;
         Ok(Self {
             c,
+            params: c.params(&s, 0, 0)?,
             render_samples: variant_rendering(c, &s),
             s,
             sum: vec![Vec4::ZERO; n],
@@ -431,7 +435,7 @@ impl<'a> CpuSums<'a> {
     /// (`next`, zeroed first), so the lane integrator fills its sixteen lanes from both.
     fn add_rows(&mut self, start: u32, count: u32, two: bool, row_done: &(dyn Fn(u32) + Sync)) -> Result<()> {
         let (c, w, render_samples) = (self.c, self.s.width as usize, self.render_samples);
-        let params = c.params(&self.s, start, count)?;
+        let params = RenderParams { sample_start: start, sample_count: count, ..self.params };
         let scene = c.view(&params);
         let n = self.sum.len();
         let (runs, per) = if two { (2, BLOCK_SAMPLES) } else { (1, count) };

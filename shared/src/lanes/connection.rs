@@ -8,7 +8,7 @@ use super::warp::{
 use super::{sqrt, F, LANES, M, U, V3};
 use crate::connection::CONNECT_TAG;
 use crate::layout::{RenderParams, LIGHT_NOT_TRIANGLE, NO_HIT};
-use crate::sampling::{remap_in_light, select_light, INV_PI};
+use crate::sampling::{pick_light, INV_PI};
 use crate::scene::SceneView;
 use core::simd::cmp::{SimdPartialEq, SimdPartialOrd};
 use core::simd::num::SimdFloat;
@@ -27,7 +27,7 @@ pub(super) struct LightVertex {
     cos_l: F,
     /// The light point's area density (pmf / area).
     pa: F,
-    /// Emission * pi / pa: the subpath's weight at the vertex, before the vertex's BSDF.
+    /// Emission / (pi pa), as `crate::connection::LightVertex`'s.
     power: V3,
 }
 
@@ -63,11 +63,9 @@ pub(super) fn light_vertices(
     let mut ok = live;
     for i in 0..LANES {
         if live.test(i) {
-            let index = if many { select_light(scene.lights, scene.light_count, u1[i]) } else { 0 };
+            let (index, u) = pick_light(scene.lights, scene.light_count, many, u1[i]);
+            u1[i] = u;
             let light = scene.lights[index as usize];
-            if many {
-                u1[i] = remap_in_light(scene.lights, index, u1[i]);
-            }
             if light.triangle >= LIGHT_NOT_TRIANGLE {
                 ok.set(i, false);
                 continue;
@@ -101,7 +99,7 @@ pub(super) fn light_vertices(
         dist2: hits.t * hits.t * len2,
         cos_l: local.z,
         pa,
-        power: lg.emission.scale(F::splat(core::f32::consts::PI) / pa),
+        power: lg.emission.scale(F::splat(INV_PI) / pa),
     }
 }
 
@@ -134,15 +132,13 @@ pub(super) fn connect(
     if !valid.any() {
         return;
     }
-    let inv_pi = F::splat(INV_PI);
-    let a = cos_e * inv_pi * cos_ye.abs() / dist2;
-    let q0 = cos_yl * inv_pi;
+    let geo = cos_e * cos_ye.abs() / dist2;
+    let q0 = cos_yl * F::splat(INV_PI);
     let q1 = lv.pa * lv.dist2 / lv.cos_l;
-    let q2 = lv.pa * cos_yl * inv_pi / a;
+    let q2 = lv.pa * cos_yl / geo;
     let w2 = power_heuristic3(q2, q0, q1);
     let target = offset_ray_origin(lv.pos, lv.error, nfy);
     let open = unblocked(scene, p, spawn, target - spawn, valid);
-    let g = inv_pi * inv_pi * cos_e * cos_ye.abs() / dist2 * w2;
-    let added = (beta * albedo * lv.albedo * lv.power).scale(g);
+    let added = (beta * albedo * lv.albedo * lv.power).scale(geo * w2);
     *radiance = V3::select(open, *radiance + added, *radiance);
 }

@@ -37,7 +37,7 @@ use crate::numerics::sanitize;
 use crate::raycast::query;
 use crate::record::NoRecord;
 use crate::rng::PixelSeeds;
-use crate::sampling::{remap_in_light, select_light, INV_PI};
+use crate::sampling::{pick_light, INV_PI};
 use crate::scene::SceneView;
 use crate::surface::{emission_at, looks_up_textures, resolve, shading_normal};
 use crate::vecmath::{dot, xyz};
@@ -386,8 +386,7 @@ fn trace_paths(
         // connection strategy's MIS weight.
         let inv_pi_a = if bidir & (bounce > 0) {
             let len2 = dir.dot(dir);
-            let a = bsdf_pdf * n.dot(dir).abs() / (sqrt(len2) * len2 * t * t);
-            F::splat(1.0) / (F::splat(core::f32::consts::PI) * a)
+            sqrt(len2) * len2 * t * t / (prev_cos * n.dot(dir).abs())
         } else {
             zero
         };
@@ -542,11 +541,9 @@ fn next_event(
     let mut on_triangle = alive;
     for i in 0..LANES {
         if alive.test(i) {
-            let index = if many { select_light(scene.lights, scene.light_count, u1[i]) } else { 0 };
+            let (index, u) = pick_light(scene.lights, scene.light_count, many, u1[i]);
+            u1[i] = u;
             let light = scene.lights[index as usize];
-            if many {
-                u1[i] = remap_in_light(scene.lights, index, u1[i]);
-            }
             (triangle[i], pmf[i], area[i]) = (light.triangle, light.pmf, light.area);
             let other =
                 (v.has(FEATURE_ENVIRONMENT_MAP) | v.has(FEATURE_PUNCTUAL)) & (light.triangle >= LIGHT_NOT_TRIANGLE);

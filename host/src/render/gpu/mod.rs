@@ -483,7 +483,8 @@ impl Gpu {
         // A dispatch never crosses a block (`blocks`): more samples would be cut anyway.
         let per_dispatch =
             ((PATHS_PER_PASS / pixels.max(1)) as u32).clamp(1, s.spp.min(max_per_pass).min(BLOCK_SAMPLES));
-        Ok(GpuSums { gpu: self, c, s, buffers, pipeline, per_dispatch, rounds, persistent_groups })
+        let params = c.params(&s, 0, 0)?;
+        Ok(GpuSums { gpu: self, s, params, buffers, pipeline, per_dispatch, rounds, persistent_groups })
     }
 
     /// Casts a batch of rays through the scene's tree (no shading); one result per ray.

@@ -7,9 +7,11 @@ use super::*;
 /// addition one or more dispatches.
 pub(crate) struct GpuSums<'a> {
     pub(super) gpu: &'a Gpu,
-    pub(super) c: &'a Compiled,
     /// The settings, the traversal resolved for the adapter.
     pub(super) s: RenderSettings,
+    /// `s`'s parameters, found once (`Compiled::params` analyses the scene); each dispatch sets
+    /// its samples and rounds.
+    pub(super) params: RenderParams,
     pub(super) buffers: ImageBuffers,
     pub(super) pipeline: wgpu::ComputePipeline,
     /// The most samples per pixel one dispatch adds (about `PATHS_PER_PASS` paths, at most
@@ -36,8 +38,8 @@ impl RunningSums for GpuSums<'_> {
         let mut at = start;
         while at < end {
             let count = self.per_dispatch.min(end - at);
-            let mut params = self.c.params(s, at, count)?;
-            params.persistent_rounds = self.rounds;
+            let params =
+                RenderParams { sample_start: at, sample_count: count, persistent_rounds: self.rounds, ..self.params };
             g.queue.write_buffer(&b.scene.params, 0, bytemuck::bytes_of(&params));
             match s.dispatch {
                 Dispatch::Plain => g.dispatch(

@@ -219,6 +219,19 @@ mod tests {
     }
 
     #[test]
+    fn pick_light_is_the_search_and_the_remap() {
+        let l = |pmf: f32, cdf: f32| Light { triangle: 0, pmf, cdf, area: 1.0 };
+        let lights = [l(0.25, 0.25), l(0.0, 0.25), l(0.75, 1.0)];
+        for u in [0.0, 0.1, 0.25, 0.4, 0.625, 0.99, ONE_MINUS_EPSILON] {
+            let index = select_light(&lights, 3, u);
+            assert_eq!(pick_light(&lights, 3, true, u), (index, remap_in_light(&lights, index, u)), "u {u}");
+            // One light: light 0 and the uniform unchanged, the search skipped.
+            assert_eq!(pick_light(&lights, 1, false, u), (0, u), "u {u}");
+        }
+        assert_eq!(pick_light(&lights, 3, true, 0.625), (2, 0.5));
+    }
+
+    #[test]
     fn power_heuristic_limits() {
         assert_eq!(power_heuristic(1.0, 0.0), 1.0);
         assert_eq!(power_heuristic(0.0, 0.0), 0.0);

@@ -78,7 +78,8 @@ fn connections_lower_the_noise_of_bounced_light() {
 #[test]
 fn connections_run_where_asked_for_and_where_the_scene_allows() {
     let (c, s) = room(1.0);
-    assert!(!features::analyse(&c, &s).connect, "off by default");
+    assert_eq!(s.connect, Connect::On, "on by default: the scene file does not say");
+    assert!(features::analyse(&c, &s).connect, "on by default");
     let s = RenderSettings { connect: Connect::On, ..s };
     assert!(features::analyse(&c, &s).connect, "on where asked for, in a room of Lambertian walls");
     assert!(c.params(&s, 0, 1).unwrap().connect == 1);

@@ -143,6 +143,8 @@ fn cornell(albedo_scale: f32) -> Compiled {
     l.compiled
 }
 
+/// Path tracing alone (`--connect off`): the cases that connect light subpaths say so with
+/// `connecting`.
 fn settings(eye: DVec3, target: DVec3, sky: f32, bounces: u32) -> RenderSettings {
     let camera = Camera { eye, target, up: DVec3::Y, fov_deg: 45.0 };
     RenderSettings {
@@ -153,6 +155,7 @@ fn settings(eye: DVec3, target: DVec3, sky: f32, bounces: u32) -> RenderSettings
         rr_start: 2,
         seed: 7,
         environment: Vec3::splat(sky),
+        connect: Connect::Off,
         ..RenderSettings::with_camera(camera)
     }
 }
@@ -333,7 +336,7 @@ fn every_variant_renders_the_generic_image() {
 #[test]
 fn leaving_out_a_used_feature_changes_the_image() {
     let c = lamp_and_block(true);
-    // Path tracing alone (the default): a set that keeps the connections but leaves out what
+    // Path tracing alone (`settings`): a set that keeps the connections but leaves out what
     // they need would run the generic code (`cpu::cpu_variant_bits`).
     let s = settings(DVec3::new(0.0, 2.5, 5.0), DVec3::new(0.0, 0.5, 0.0), 0.4, 3);
     let full = cpu::render(&c, &s, &no_progress).unwrap();

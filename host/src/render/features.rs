@@ -219,7 +219,12 @@ mod tests {
         // A box that emits and reflects everywhere: many emitters, indirect light.
         let c = crate::compile(furnace(0.5, 1.0).unwrap(), Default::default());
         let f = analyse(&c, &settings(3, Vec3::ZERO));
-        assert_eq!(f.bits, FEATURE_EMITTERS | FEATURE_MANY_EMITTERS | FEATURE_DIFFUSE | FEATURE_INDIRECT);
+        // Lambertian walls lit by emitting triangles: the connections run, as by default.
+        assert_eq!(
+            f.bits,
+            FEATURE_EMITTERS | FEATURE_MANY_EMITTERS | FEATURE_DIFFUSE | FEATURE_INDIRECT | FEATURE_CONNECT
+        );
+        assert!(f.connect);
         assert_eq!(f.emitters, 12);
         // Six faces of area 4, emission 1 (luminance 1).
         assert!((f.emitter_power - 24.0).abs() < 1e-4, "{}", f.emitter_power);

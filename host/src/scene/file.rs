@@ -192,8 +192,8 @@ pub struct RenderSection {
     /// "sobol" (default) or "independent".
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sampler: Option<SamplerKind>,
-    /// "on": light subpaths connect to the eye vertices where the scene allows it; "off"
-    /// (default): path tracing alone.
+    /// "on" (default): light subpaths connect to the eye vertices where the scene allows it;
+    /// "off": path tracing alone.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub connect: Option<Connect>,
     /// Seconds: the render stops between passes of whole samples once they are spent.

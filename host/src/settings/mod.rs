@@ -110,11 +110,11 @@ impl SamplerKind {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Connect {
-    /// Where the scene allows it: it reached relMSE 1e-3 sooner, or as soon, on every scene of
-    /// the time-against-error benchmark.
-    On,
-    /// Path tracing alone (the default until the tests run with the connections).
+    /// Where the scene allows it (the default: it reached relMSE 1e-3 sooner, or as soon, on
+    /// every scene of the time-against-error benchmark).
     #[default]
+    On,
+    /// Path tracing alone.
     Off,
 }
 

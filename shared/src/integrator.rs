@@ -46,7 +46,7 @@ use crate::vecmath::{dot, length, length_squared, max_component, normalize, xyz}
 use spirv_std::num_traits::Float;
 
 /// Shadow rays stop this fraction short of the light (pbrt's `ShadowEpsilon`).
-pub(crate) const SHADOW_EPSILON: f32 = 1e-4;
+pub const SHADOW_EPSILON: f32 = 1e-4;
 /// Russian roulette never keeps a path with probability above this.
 pub(crate) const RR_MAX_SURVIVAL: f32 = 0.95;
 

@@ -42,6 +42,10 @@ pub struct Features {
     /// Whether light subpaths connect to the eye vertices (`shared::connection`): asked for,
     /// and the scene allows it.
     pub connect: bool,
+    /// With `--connect auto` where the scene allows the connections: the share of the camera's
+    /// first hits that see the light they sample (`seen_light_share`), which decided.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub seen_light_share: Option<f64>,
     /// The integrator variant that renders it: "generic", or "specialised" for `bits`.
     pub variant: &'static str,
     /// The feature bits of that variant (`FEATURES_ALL` for the generic code).
@@ -90,6 +94,86 @@ pub fn variant_bits(c: &Compiled, s: &RenderSettings) -> u32 {
         analyse(c, s).bits
     } else {
         FEATURES_ALL
+    }
+}
+
+/// `Connect::Auto` connects light subpaths where fewer of the camera's first hits than this
+/// see the point they sample on a light (`seen_light_share`). In the time-against-error
+/// benchmark the connections paid where the light mostly arrives after a bounce (a room lit
+/// around a partition, Sponza's arcades: 0.4× and 0.7× path tracing's time to relMSE 1e-3)
+/// and cost about as much as they saved where most of what the camera sees is lit directly
+/// (the Cornell boxes: 0.94–1.10×); BENCHMARKS.md gives each scene's share.
+pub const AUTO_CONNECT_BELOW: f64 = 0.5;
+
+/// Camera rays through a grid of pixel centres per axis for `seen_light_share`.
+const SEEN_LIGHT_GRID: u32 = 32;
+
+/// The share of the camera's first hits (one through the centre of each cell of a
+/// `SEEN_LIGHT_GRID`² grid over the image) that see a point sampled on an emitting triangle, as
+/// next-event estimation samples it, among those that face one. 1 where none does. A few
+/// thousand rays: a millisecond or two on a large scene, through the render's own traversal.
+pub fn seen_light_share(c: &Compiled, s: &RenderSettings) -> f64 {
+    use shared::glam::Vec3;
+    use shared::layout::{LIGHT_NOT_TRIANGLE, TRAVERSAL_WIDE_BVH};
+    use shared::numerics::offset_ray_origin;
+    use shared::raycast::{any, closest};
+    use shared::sampling::{pick_light, uniform_triangle};
+    use shared::triangle::{hit_point, interpolate, stored_normal, TriangleHit};
+    use shared::vecmath::dot;
+    let Ok(mut params) = c.params(&RenderSettings { connect: Connect::Off, ..*s }, 0, 1) else {
+        return 1.0;
+    };
+    // Every traversal finds the hits brute force finds: the wide BVH where it is built or the
+    // render asks for it (without the lanes' split, which only they need), else the k-d tree.
+    if c.wide.get().is_some() || params.traversal == TRAVERSAL_WIDE_BVH {
+        c.wide_bvh();
+        params.traversal = TRAVERSAL_WIDE_BVH;
+    }
+    let view = c.view(&params);
+    let many = view.light_count > 1;
+    let (mut facing, mut seen) = (0u32, 0u32);
+    for j in 0..SEEN_LIGHT_GRID {
+        for i in 0..SEEN_LIGHT_GRID {
+            let x = (i as f32 + 0.5) * s.width as f32 / SEEN_LIGHT_GRID as f32;
+            let y = (j as f32 + 0.5) * s.height as f32 / SEEN_LIGHT_GRID as f32;
+            let origin = shared::vecmath::xyz(params.eye);
+            let dir = shared::camera::primary_direction(&params, x, y);
+            let hit = closest(&view, params.traversal, origin, dir, f32::MAX).hit;
+            if !hit.is_hit() {
+                continue;
+            }
+            let tri = &view.triangles[hit.triangle as usize];
+            let at = hit_point(tri, &TriangleHit { t: hit.t, u: hit.u, v: hit.v, w: hit.w });
+            let n = stored_normal(tri);
+            let nf = if dot(n, dir) < 0.0 { n } else { -n };
+            let [u0, u1, ..] = shared::rng::pcg4d(i, j, s.seed, 0x5ee1_1647).map(shared::rng::u32_to_unit_f32);
+            let (index, u0) = pick_light(view.lights, view.light_count, many, u0);
+            let light = view.lights[index as usize];
+            if light.triangle >= LIGHT_NOT_TRIANGLE {
+                continue;
+            }
+            let ltri = &view.triangles[light.triangle as usize];
+            let (b0, b1, b2) = uniform_triangle(u0, u1);
+            let on_light = interpolate(ltri, b0, b1, b2);
+            let to_light: Vec3 = on_light.p - at.p;
+            let nl = stored_normal(ltri);
+            // Emitters emit on the side of their stored normal (`surface::emitted`).
+            if !(dot(nf, to_light) > 0.0) || !(dot(nl, to_light) < 0.0) {
+                continue;
+            }
+            facing += 1;
+            let from = offset_ray_origin(at.p, at.error, nf);
+            let target = offset_ray_origin(on_light.p, on_light.error, -nl * dot(nl, to_light).signum());
+            let shadow = any(&view, params.traversal, from, target - from, 1.0 - shared::integrator::SHADOW_EPSILON);
+            if !shadow.hit.is_hit() {
+                seen += 1;
+            }
+        }
+    }
+    if facing == 0 {
+        1.0
+    } else {
+        seen as f64 / facing as f64
     }
 }
 
@@ -162,8 +246,16 @@ pub fn analyse(c: &Compiled, s: &RenderSettings) -> Features {
         }
     }
     // A setting, not a fact of the scene: on where asked for and the scene's other bits allow
-    // it, for the radiance image with a bounce to connect.
-    let connect = s.connect == Connect::On && s.aov == Aov::Radiance && s.max_bounces > 0 && connection_applies(bits);
+    // it, for the radiance image with a bounce to connect; by default (`Connect::Auto`) only
+    // where the camera's first hits mostly do not see the light.
+    let allowed = s.aov == Aov::Radiance && s.max_bounces > 0 && connection_applies(bits);
+    let seen_light = (allowed && s.connect == Connect::Auto).then(|| seen_light_share(c, s));
+    let connect = allowed
+        && match s.connect {
+            Connect::On => true,
+            Connect::Off => false,
+            Connect::Auto => seen_light.is_some_and(|share| share < AUTO_CONNECT_BELOW),
+        };
     if connect {
         bits |= FEATURE_CONNECT;
     }
@@ -195,6 +287,7 @@ pub fn analyse(c: &Compiled, s: &RenderSettings) -> Features {
         bounces: s.max_bounces,
         indirect,
         connect,
+        seen_light_share: seen_light,
         variant: if s.specialize { "specialised" } else { "generic" },
         variant_bits: if s.specialize { bits } else { FEATURES_ALL },
         lanes: false,
@@ -215,16 +308,39 @@ mod tests {
     }
 
     #[test]
+    fn auto_connects_where_the_first_hits_do_not_see_the_light() {
+        let c = crate::compile(furnace(0.5, 1.0).unwrap(), Default::default());
+        let inside = |eye: DVec3, target: DVec3| RenderSettings {
+            max_bounces: 3,
+            ..RenderSettings::with_camera(Camera { eye, target, up: DVec3::Y, fov_deg: 60.0 })
+        };
+        // Inside the furnace every first hit sees the walls it samples (a sample on its own
+        // wall faces it edge-on and is not counted).
+        let s = inside(DVec3::new(0.0, 0.0, 0.5), DVec3::new(0.0, 0.0, -1.0));
+        assert_eq!(seen_light_share(&c, &s), 1.0);
+        assert!(!analyse(&c, &s).connect);
+        // `on` runs them all the same.
+        let on = analyse(&c, &RenderSettings { connect: Connect::On, ..s });
+        assert!(on.connect && on.bits & FEATURE_CONNECT != 0);
+        // Scenes whose light the camera's first hits mostly do not see: `tests/connection.rs`
+        // (a room lit from behind a partition); and one that does: `tests/cli.rs` (the Cornell box).
+    }
+
+    #[test]
     fn the_set_says_what_the_scene_uses() {
         // A box that emits and reflects everywhere: many emitters, indirect light.
         let c = crate::compile(furnace(0.5, 1.0).unwrap(), Default::default());
         let f = analyse(&c, &settings(3, Vec3::ZERO));
-        // Lambertian walls lit by emitting triangles: the connections run, as by default.
-        assert_eq!(
-            f.bits,
-            FEATURE_EMITTERS | FEATURE_MANY_EMITTERS | FEATURE_DIFFUSE | FEATURE_INDIRECT | FEATURE_CONNECT
-        );
-        assert!(f.connect);
+        // Lambertian walls lit by emitting triangles allow the connections: `off` and `on` say
+        // whether they run, `auto` (the default) decides from what the camera sees.
+        let off = analyse(&c, &RenderSettings { connect: Connect::Off, ..settings(3, Vec3::ZERO) });
+        assert_eq!(off.bits, FEATURE_EMITTERS | FEATURE_MANY_EMITTERS | FEATURE_DIFFUSE | FEATURE_INDIRECT);
+        assert_eq!((off.connect, off.seen_light_share), (false, None));
+        let on = analyse(&c, &RenderSettings { connect: Connect::On, ..settings(3, Vec3::ZERO) });
+        assert_eq!((on.bits, on.connect, on.seen_light_share), (off.bits | FEATURE_CONNECT, true, None));
+        let share = f.seen_light_share.unwrap();
+        assert_eq!(f.connect, share < AUTO_CONNECT_BELOW, "{share}");
+        assert_eq!(f.bits, if f.connect { on.bits } else { off.bits });
         assert_eq!(f.emitters, 12);
         // Six faces of area 4, emission 1 (luminance 1).
         assert!((f.emitter_power - 24.0).abs() < 1e-4, "{}", f.emitter_power);

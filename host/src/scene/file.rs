@@ -192,8 +192,9 @@ pub struct RenderSection {
     /// "sobol" (default) or "independent".
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sampler: Option<SamplerKind>,
-    /// "on" (default): light subpaths connect to the eye vertices where the scene allows it;
-    /// "off": path tracing alone.
+    /// "auto" (default): light subpaths connect to the eye vertices where the scene allows it
+    /// and the camera's first hits mostly do not see the light; "on": wherever the scene allows
+    /// it; "off": path tracing alone.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub connect: Option<Connect>,
     /// Seconds: the render stops between passes of whole samples once they are spent.

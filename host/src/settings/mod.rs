@@ -110,9 +110,12 @@ impl SamplerKind {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Connect {
-    /// Where the scene allows it (the default: it reached relMSE 1e-3 sooner, or as soon, on
-    /// every scene of the time-against-error benchmark).
+    /// Where the scene allows it and the light mostly arrives after a bounce: fewer than half
+    /// of the camera's first hits see the point they sample on a light
+    /// (`render::features::seen_light_share`). The default.
     #[default]
+    Auto,
+    /// Where the scene allows it.
     On,
     /// Path tracing alone.
     Off,

@@ -40,7 +40,8 @@ pub struct SceneSettings {
     pub sampler: Option<SamplerKind>,
     /// Connect a light subpath to every eye vertex where the scene allows it (Lambertian
     /// surfaces, flat normals, emitting triangles): less noise in indirect light, a shadow ray
-    /// more per vertex [scene file, else on].
+    /// more per vertex; `auto` only where most of what the camera sees is not lit directly
+    /// [scene file, else auto].
     #[arg(long, value_enum)]
     pub connect: Option<Connect>,
     /// Stop after SEC seconds, between passes of whole samples (every pixel gets the same

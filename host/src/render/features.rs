@@ -99,10 +99,10 @@ pub fn variant_bits(c: &Compiled, s: &RenderSettings) -> u32 {
 
 /// `Connect::Auto` connects light subpaths where fewer of the camera's first hits than this
 /// see the point they sample on a light (`seen_light_share`). In the time-against-error
-/// benchmark the connections paid where the light mostly arrives after a bounce (a room lit
-/// around a partition, Sponza's arcades: 0.4× and 0.7× path tracing's time to relMSE 1e-3)
-/// and cost about as much as they saved where most of what the camera sees is lit directly
-/// (the Cornell boxes: 0.94–1.10×); BENCHMARKS.md gives each scene's share.
+/// benchmark the connections paid well where the light mostly arrives after a bounce (a room
+/// lit around a partition, Sponza's arcades) and cost about as much as they saved where most
+/// of what the camera sees is lit directly (the Cornell boxes); BENCHMARKS.md gives each
+/// scene's share and times.
 pub const AUTO_CONNECT_BELOW: f64 = 0.5;
 
 /// Camera rays through a grid of pixel centres per axis for `seen_light_share`.
@@ -110,8 +110,8 @@ const SEEN_LIGHT_GRID: u32 = 32;
 
 /// The share of the camera's first hits (one through the centre of each cell of a
 /// `SEEN_LIGHT_GRID`² grid over the image) that see a point sampled on an emitting triangle, as
-/// next-event estimation samples it, among those that face one. 1 where none does. A few
-/// thousand rays: a millisecond or two on a large scene, through the render's own traversal.
+/// next-event estimation samples it, among those that face one; 1 where none does. Two rays a
+/// cell, through the render's own traversal: small beside any render.
 pub fn seen_light_share(c: &Compiled, s: &RenderSettings) -> f64 {
     use shared::glam::Vec3;
     use shared::layout::{LIGHT_NOT_TRIANGLE, TRAVERSAL_WIDE_BVH};

@@ -149,10 +149,8 @@ fn settings(a: &ImageArgs, loaded: &mut Loaded, scene: &Path) -> Result<RenderSe
         loaded.compiled.prepare_emitters();
     }
     let mut s = loaded.settings.overridden_by(&flags).resolve(lo, hi).with_context(context)?;
-    // The camera placed against the scene (its distance in the local frame), before any work:
-    // without the connections' decision, which casts rays (`features::seen_light_share`).
-    let camera_only = crate::settings::RenderSettings { connect: crate::settings::Connect::Off, ..s };
-    loaded.compiled.params(&camera_only, 0, 1).with_context(context)?;
+    // The camera placed against the scene (its distance in the local frame), before any work.
+    loaded.compiled.check_camera(&s).with_context(context)?;
     s.traversal = a.traversal;
     s.dispatch = a.dispatch;
     s.aov = a.aov;

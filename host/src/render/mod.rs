@@ -229,6 +229,12 @@ impl Compiled {
         (point_to_world(self.bounds_min, self.origin), point_to_world(self.bounds_max, self.origin))
     }
 
+    /// Whether `s`'s camera can render this scene (its distance in the local frame): `params`
+    /// without the connections' decision, which casts rays (`features::seen_light_share`).
+    pub fn check_camera(&self, s: &RenderSettings) -> Result<()> {
+        self.params(&RenderSettings { connect: crate::settings::Connect::Off, ..*s }, 0, 1).map(|_| ())
+    }
+
     pub fn params(&self, s: &RenderSettings, sample_start: u32, sample_count: u32) -> Result<RenderParams> {
         let (right, up, forward) = s.camera.basis(s.aspect())?;
         let eye = point_to_local(s.camera.eye, self.origin);

@@ -194,7 +194,7 @@ fn resolve(state: &State, r: &RenderRequest) -> Result<(usize, RenderSettings, D
     }
     s.check()?;
     // The camera placed against the scene, before any work.
-    c.params(&s, 0, 1)?;
+    c.check_camera(&s)?;
     Ok((scene, s, device))
 }
 

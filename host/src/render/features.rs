@@ -132,11 +132,11 @@ pub fn seen_light_share(c: &Compiled, s: &RenderSettings) -> f64 {
     let view = c.view(&params);
     let many = view.light_count > 1;
     let (mut facing, mut seen) = (0u32, 0u32);
+    let origin = shared::vecmath::xyz(params.eye);
     for j in 0..SEEN_LIGHT_GRID {
         for i in 0..SEEN_LIGHT_GRID {
             let x = (i as f32 + 0.5) * s.width as f32 / SEEN_LIGHT_GRID as f32;
             let y = (j as f32 + 0.5) * s.height as f32 / SEEN_LIGHT_GRID as f32;
-            let origin = shared::vecmath::xyz(params.eye);
             let dir = shared::camera::primary_direction(&params, x, y);
             let hit = closest(&view, params.traversal, origin, dir, f32::MAX).hit;
             if !hit.is_hit() {
@@ -163,7 +163,8 @@ pub fn seen_light_share(c: &Compiled, s: &RenderSettings) -> f64 {
             }
             facing += 1;
             let from = offset_ray_origin(at.p, at.error, nf);
-            let target = offset_ray_origin(on_light.p, on_light.error, -nl * dot(nl, to_light).signum());
+            // The side the point sees: the emitting one, by the test above.
+            let target = offset_ray_origin(on_light.p, on_light.error, nl);
             let shadow = any(&view, params.traversal, from, target - from, 1.0 - shared::integrator::SHADOW_EPSILON);
             if !shadow.hit.is_hit() {
                 seen += 1;

@@ -2,7 +2,8 @@
 
 For each scene: a converged reference from Mitsuba (two half references with different seeds,
 averaged; their difference estimates the reference's own error, the floor under every curve),
-then every renderer at an increasing sample count. Each image is scored against the reference
+then every renderer at an increasing sample count, up to the first rung of 256 spp or more under
+relMSE 1e-3 (or the scene's cap). Each image is scored against the reference
 with `kdtrace compare --json` (RMSE, relMSE, MAE, ꟻLIP). Writes bench/results/time_vs_error.csv,
 a log-log plot of relMSE against time (bench/results/time_vs_error.png), and a summary
 (bench/results/summary.json and a Markdown table on stdout): per renderer and scene the fitted
@@ -66,22 +67,31 @@ SCENES = {
     "sponza-sky": {
         "generated": "sponza-sky.obj",
         "camera": ["--eye=-11,3,0", "--target=11,5,0", "--up=0,1,0", "--fov=55"],
-        # Long paths in a closed building: 4-5x the Cornell box's time per sample. 256 spp
-        # (relMSE ~5e-3) leaves the time to 1e-3 extrapolated over less than a decade.
-        "max_spp": 256,
+        # Long paths in a closed building: 4-5x the Cornell box's time per sample. Mitsuba
+        # needs about 2,000 spp for relMSE 1e-3 here, so its ladder goes to 4096 and the time is
+        # interpolated, not extrapolated; a 4096-spp reference's own relMSE (~4e-4) would be
+        # most of the target, so the reference takes 16384.
+        "max_spp": 4096,
+        "ref_spp": 16384,
     },
 }
 
+# A ladder stops at the first rung of 256 spp or more whose relMSE is under TARGET: the rungs
+# after it add time without moving the time to the target (and 256 keeps a per-sample figure
+# at a count every renderer reaches).
+TARGET = 1e-3
+STOP_FROM_SPP = 256
+
 LADDERS = {
-    "kdtrace-cpu": [4, 16, 64, 256, 1024],
+    "kdtrace-cpu": [4, 16, 64, 256, 1024, 4096],
     # The k-d tree instead of the CPU path's wide BVH (`--traversal full`): what the BVH alone buys.
     "kdtrace-cpu-kd": [4, 16, 64, 256, 1024],
     # The generic integrator (`--specialize off`): what specialisation alone buys.
     "kdtrace-cpu-generic": [4, 16, 64, 256, 1024],
     # Light subpaths connected to the eye vertices, and path tracing alone (`--connect on|off`):
     # what the connections alone buy.
-    "kdtrace-cpu-connect": [4, 16, 64, 256, 1024],
-    "kdtrace-cpu-pathtrace": [4, 16, 64, 256, 1024],
+    "kdtrace-cpu-connect": [4, 16, 64, 256, 1024, 4096],
+    "kdtrace-cpu-pathtrace": [4, 16, 64, 256, 1024, 4096],
     # Adaptive sampling: the rungs are thresholds (`--adaptive`), each pixel up to 8192 spp.
     "kdtrace-cpu-adaptive": [0.2, 0.1, 0.05, 0.03, 0.02],
     "kdtrace-cpu-asyougo": [0.2, 0.1, 0.05, 0.03, 0.02],
@@ -89,9 +99,9 @@ LADDERS = {
     "kdtrace-cpu-independent": [4, 16, 64, 256, 1024],
     "kdtrace-gpu": [4, 16, 64],
     "cycles": [4, 16, 64, 256],
-    "mitsuba": [4, 16, 64, 256, 1024],
+    "mitsuba": [4, 16, 64, 256, 1024, 4096],
     # Mitsuba with its low-discrepancy sampler (padded (0,2)-sequences) instead of its default.
-    "mitsuba-ldsampler": [4, 16, 64, 256, 1024],
+    "mitsuba-ldsampler": [4, 16, 64, 256, 1024, 4096],
 }
 
 
@@ -171,7 +181,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size", type=int, default=256)
     ap.add_argument("--bounces", type=int, default=6)
-    ap.add_argument("--ref-spp", type=int, default=4096, help="Mitsuba reference spp (two halves)")
+    ap.add_argument("--ref-spp", type=int, help="Mitsuba reference spp (two halves); each scene's own (4096 unless it says) if not given")
     ap.add_argument("--reuse-reference", action="store_true", help="keep reference halves already rendered in --out (same spp and size)")
     ap.add_argument("--scenes", default="cornell-box,CornellBox-Sphere", help=f"comma-separated, of: {', '.join(SCENES)}")
     ap.add_argument("--renderers", default=",".join(LADDERS))
@@ -191,12 +201,13 @@ def main():
     for scene in a.scenes.split(","):
         halves = []
         t_ref = time.perf_counter()
+        ref_spp = a.ref_spp or SCENES[scene].get("ref_spp", 4096)
         for h, seed in enumerate([7, 8]):
-            out = os.path.join(img, f"{scene}-ref{a.ref_spp}-{a.size}-half{h}.exr")
+            out = os.path.join(img, f"{scene}-ref{ref_spp}-{a.size}-half{h}.exr")
             if not (a.reuse_reference and os.path.exists(out)):
-                render("mitsuba", scene, a.ref_spp // 2, seed, out, a)
+                render("mitsuba", scene, ref_spp // 2, seed, out, a)
             halves.append(out)
-        ref = os.path.join(img, f"{scene}-ref{a.ref_spp}-{a.size}.exr")
+        ref = os.path.join(img, f"{scene}-ref{ref_spp}-{a.size}.exr")
         run([PY, "-c", "import sys, numpy as np, mitsuba as mi; mi.set_variant('scalar_rgb');"
              "a, b = (np.asarray(mi.Bitmap(p), dtype=np.float64) for p in sys.argv[1:3]);"
              "mi.util.write_bitmap(sys.argv[3], mi.Bitmap(((a + b) / 2).astype(np.float32)), write_async=False); print('{}')",
@@ -205,8 +216,8 @@ def main():
         # Two independent halves differ by twice the variance of one half, which is twice that of
         # the full reference: relMSE(half0, half1) / 4 estimates the reference's own relMSE.
         half_diff = compare(halves[0], halves[1])
-        refs[scene] = {"spp": a.ref_spp, "seconds": ref_s, "relmse_floor": half_diff["relmse"] / 4, "rmse_floor": half_diff["rmse"] / 2}
-        print(f"{scene}: reference Mitsuba {a.ref_spp} spp in {ref_s:.1f} s; reference relMSE ~ {refs[scene]['relmse_floor']:.2e}", flush=True)
+        refs[scene] = {"spp": ref_spp, "seconds": ref_s, "relmse_floor": half_diff["relmse"] / 4, "rmse_floor": half_diff["rmse"] / 2}
+        print(f"{scene}: reference Mitsuba {ref_spp} spp in {ref_s:.1f} s; reference relMSE ~ {refs[scene]['relmse_floor']:.2e}", flush=True)
         for renderer in a.renderers.split(","):
             cap = a.max_spp or SCENES[scene].get("max_spp")
             for spp in [n for n in LADDERS[renderer] if cap is None or n <= cap]:
@@ -218,6 +229,8 @@ def main():
                        "nan": e["test_nonfinite"]["nan"], "inf": e["test_nonfinite"]["inf"]}
                 rows.append(row)
                 print(json.dumps(row), flush=True)
+                if isinstance(spp, int) and spp >= STOP_FROM_SPP and e["relmse"] < TARGET:
+                    break
     with open(os.path.join(a.out, "time_vs_error.csv"), "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
@@ -229,14 +242,14 @@ def main():
             rs = [r for r in rows if r["scene"] == scene and r["renderer"] == renderer]
             ts, es = [r["time_s"] for r in rs], [r["relmse"] for r in rs]
             slope, _ = fit_slope(ts, es)
-            t1e3, how = time_to(1e-3, ts, es)
-            w1e3, whow = time_to(1e-3, [r["wall_s"] for r in rs], es)
+            t1e3, how = time_to(TARGET, ts, es)
+            w1e3, whow = time_to(TARGET, [r["wall_s"] for r in rs], es)
             # The reference's own error adds to every measured relMSE (independent errors add):
             # net of it, the time to relMSE 1e-3 against the converged image, from the rungs
             # whose measured error is at least twice the floor.
             floor = refs[scene]["relmse_floor"]
             net = [(t, e - floor) for t, e in zip(ts, es) if e >= 2 * floor]
-            n1e3, nhow = time_to(1e-3, [t for t, _ in net], [e for _, e in net]) if len(net) >= 2 else (None, "too few rungs")
+            n1e3, nhow = time_to(TARGET, [t for t, _ in net], [e for _, e in net]) if len(net) >= 2 else (None, "too few rungs")
             # Seconds per sample per pixel at the largest fixed-spp rung both kdtrace-cpu and
             # Mitsuba rendered (adaptive rungs are thresholds: no per-sample figure).
             per_sample = None

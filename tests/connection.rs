@@ -76,6 +76,25 @@ fn connections_lower_the_noise_of_bounced_light() {
 }
 
 #[test]
+fn the_share_is_kept_per_camera() {
+    // `seen_light_share` keeps its last answer on the scene: asked again about another seed or
+    // camera it must answer as a scene asked for the first time does.
+    let (c, s) = room(1.0);
+    let other = RenderSettings { seed: 9, ..s };
+    let mut moved = s;
+    moved.camera.eye.x += 0.5;
+    let fresh = |s: &RenderSettings| features::seen_light_share(&room(1.0).0, s);
+    let expected = [fresh(&s), fresh(&other), fresh(&moved)];
+    assert!(expected[0] != expected[1] || expected[0] != expected[2], "{expected:?}: the settings change the share");
+    for _ in 0..2 {
+        for (s, e) in [s, other, moved].iter().zip(expected) {
+            assert_eq!(features::seen_light_share(&c, s), e);
+            assert_eq!(features::seen_light_share(&c, s), e, "asked twice");
+        }
+    }
+}
+
+#[test]
 fn connections_run_where_asked_for_and_where_the_scene_allows() {
     let (c, s) = room(1.0);
     assert_eq!(s.connect, Connect::Auto, "auto by default: the scene file does not say");

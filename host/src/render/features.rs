@@ -123,6 +123,15 @@ pub fn seen_light_share(c: &Compiled, s: &RenderSettings) -> f64 {
     let Ok(mut params) = c.params(&RenderSettings { connect: Connect::Off, ..*s }, 0, 1) else {
         return 1.0;
     };
+    // Every traversal gives the same hits, so the share depends on the camera, the image size
+    // and the seed alone: the parameters as they stand here hold all three.
+    let mut cache = c.seen_light.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some((key, share)) = *cache {
+        if key == params {
+            return share;
+        }
+    }
+    let key = params;
     // Every traversal finds the hits brute force finds: the wide BVH where it is built or the
     // render asks for it (without the lanes' split, which only they need), else the k-d tree.
     if c.wide.get().is_some() || params.traversal == TRAVERSAL_WIDE_BVH {
@@ -171,11 +180,9 @@ pub fn seen_light_share(c: &Compiled, s: &RenderSettings) -> f64 {
             }
         }
     }
-    if facing == 0 {
-        1.0
-    } else {
-        seen as f64 / facing as f64
-    }
+    let share = if facing == 0 { 1.0 } else { seen as f64 / facing as f64 };
+    *cache = Some((key, share));
+    share
 }
 
 pub fn analyse(c: &Compiled, s: &RenderSettings) -> Features {

@@ -67,6 +67,10 @@ pub struct Compiled {
     /// a render through the lanes (`wide_bvh_and_split`); `None` where none pays or the scene
     /// has alpha masks.
     pub split: std::sync::OnceLock<Option<crate::bvh::split::Split>>,
+    /// `features::seen_light_share` for the last camera it was asked about (its parameters
+    /// without the connections): a render asks for its features several times (its parameters,
+    /// the variant, the report), and each pass of a progressive one again.
+    pub(crate) seen_light: std::sync::Mutex<Option<(RenderParams, f64)>>,
 }
 
 /// The k-d tree with the triangles of its leaves in blocks of `BLOCK_WIDTH`, for the CPU's SIMD
@@ -125,6 +129,7 @@ impl Compiled {
             alpha_masks,
             wide: std::sync::OnceLock::new(),
             split: std::sync::OnceLock::new(),
+            seen_light: std::sync::Mutex::new(None),
         };
         c.prepare_emitters();
         c

@@ -20,13 +20,13 @@ use crate::glam::Vec3;
 use crate::integrator::SHADOW_EPSILON;
 use crate::layout::{RenderParams, AOV_RADIANCE, LIGHT_NOT_TRIANGLE};
 use crate::numerics::offset_ray_origin;
-use crate::raycast::query_recorded;
+use crate::raycast::{any, closest, query_recorded};
 use crate::record::{NoRecord, Recorder, RAY_SHADOW};
 use crate::rng::Sampler;
 use crate::sampling::{cosine_hemisphere, orthonormal_basis, pick_light, power_heuristic3, uniform_triangle, INV_PI};
 use crate::scene::SceneView;
 use crate::triangle::{hit_point, interpolate, stored_normal, TriangleHit};
-use crate::vecmath::{dot, length_squared};
+use crate::vecmath::{dot, length_squared, xyz};
 #[allow(unused_imports)]
 use spirv_std::num_traits::Float;
 
@@ -52,6 +52,41 @@ pub fn connects(scene: &SceneView, p: &RenderParams, v: Variant) -> bool {
 pub fn inv_pi_area(prev_cos: f32, n: Vec3, dir: Vec3, t: f32) -> f32 {
     let len2 = length_squared(dir);
     len2.sqrt() * len2 * t * t / (prev_cos * dot(n, dir).abs())
+}
+
+/// Whether the camera ray through image point (`x`, `y`) sees, from its first hit, a point
+/// sampled on an emitting triangle as next-event estimation samples it (light and point from
+/// `u0`, `u1`): `None` where the ray leaves the scene, the light picked is not a triangle or
+/// the hit and the point do not face each other. The host's `Connect::Auto` counts these over a
+/// grid of the image (`render::features::seen_light_share`).
+pub fn first_hit_sees_light(scene: &SceneView, p: &RenderParams, x: f32, y: f32, u0: f32, u1: f32) -> Option<bool> {
+    let dir = crate::camera::primary_direction(p, x, y);
+    let hit = closest(scene, p.traversal, xyz(p.eye), dir, f32::MAX).hit;
+    if !hit.is_hit() {
+        return None;
+    }
+    let tri = &scene.triangles[hit.triangle as usize];
+    let at = hit_point(tri, &TriangleHit { t: hit.t, u: hit.u, v: hit.v, w: hit.w });
+    let n = stored_normal(tri);
+    let nf = if dot(n, dir) < 0.0 { n } else { -n };
+    let (index, u0) = pick_light(scene.lights, scene.light_count, scene.light_count > 1, u0);
+    let light = scene.lights[index as usize];
+    if light.triangle >= LIGHT_NOT_TRIANGLE {
+        return None;
+    }
+    let ltri = &scene.triangles[light.triangle as usize];
+    let (b0, b1, b2) = uniform_triangle(u0, u1);
+    let on_light = interpolate(ltri, b0, b1, b2);
+    let to_light = on_light.p - at.p;
+    let nl = stored_normal(ltri);
+    // Emitters emit on the side of their stored normal (`surface::emitted`).
+    if !(dot(nf, to_light) > 0.0) | !(dot(nl, to_light) < 0.0) {
+        return None;
+    }
+    let from = offset_ray_origin(at.p, at.error, nf);
+    // The side the point sees: the emitting one, by the test above.
+    let target = offset_ray_origin(on_light.p, on_light.error, nl);
+    Some(!any(scene, p.traversal, from, target - from, 1.0 - SHADOW_EPSILON).hit.is_hit())
 }
 
 /// The first vertex of a light subpath: a point on an emitting triangle (picked as next-event

@@ -113,18 +113,15 @@ const SEEN_LIGHT_GRID: u32 = 32;
 /// next-event estimation samples it, among those that face one; 1 where none does. Two rays a
 /// cell, through the render's own traversal: small beside any render.
 pub fn seen_light_share(c: &Compiled, s: &RenderSettings) -> f64 {
-    use shared::glam::Vec3;
-    use shared::layout::{LIGHT_NOT_TRIANGLE, TRAVERSAL_WIDE_BVH};
-    use shared::numerics::offset_ray_origin;
-    use shared::raycast::{any, closest};
-    use shared::sampling::{pick_light, uniform_triangle};
-    use shared::triangle::{hit_point, interpolate, stored_normal, TriangleHit};
-    use shared::vecmath::dot;
+    use shared::layout::TRAVERSAL_WIDE_BVH;
+    use shared::rng::{pcg4d, u32_to_unit_f32};
     let Ok(mut params) = c.params(&RenderSettings { connect: Connect::Off, ..*s }, 0, 1) else {
         return 1.0;
     };
-    // Every traversal gives the same hits, so the share depends on the camera, the image size
-    // and the seed alone: the parameters as they stand here hold all three.
+    // The share depends on the camera, the image size and the seed, which the parameters as
+    // they stand here hold. (The structures agree but on a ray that grazes a triangle it starts
+    // within rounding distance of (README, `--traversal`); kept, one render's decision stays
+    // the same whichever structure is built by the time it asks again.)
     let mut cache = c.seen_light.lock().unwrap_or_else(|e| e.into_inner());
     if let Some((key, share)) = *cache {
         if key == params {
@@ -132,51 +129,22 @@ pub fn seen_light_share(c: &Compiled, s: &RenderSettings) -> f64 {
         }
     }
     let key = params;
-    // Every traversal finds the hits brute force finds: the wide BVH where it is built or the
-    // render asks for it (without the lanes' split, which only they need), else the k-d tree.
+    // The wide BVH where it is built or the render asks for it (without the lanes' split, which
+    // only they need), else the k-d tree.
     if c.wide.get().is_some() || params.traversal == TRAVERSAL_WIDE_BVH {
         c.wide_bvh();
         params.traversal = TRAVERSAL_WIDE_BVH;
     }
     let view = c.view(&params);
-    let many = view.light_count > 1;
     let (mut facing, mut seen) = (0u32, 0u32);
-    let origin = shared::vecmath::xyz(params.eye);
     for j in 0..SEEN_LIGHT_GRID {
         for i in 0..SEEN_LIGHT_GRID {
             let x = (i as f32 + 0.5) * s.width as f32 / SEEN_LIGHT_GRID as f32;
             let y = (j as f32 + 0.5) * s.height as f32 / SEEN_LIGHT_GRID as f32;
-            let dir = shared::camera::primary_direction(&params, x, y);
-            let hit = closest(&view, params.traversal, origin, dir, f32::MAX).hit;
-            if !hit.is_hit() {
-                continue;
-            }
-            let tri = &view.triangles[hit.triangle as usize];
-            let at = hit_point(tri, &TriangleHit { t: hit.t, u: hit.u, v: hit.v, w: hit.w });
-            let n = stored_normal(tri);
-            let nf = if dot(n, dir) < 0.0 { n } else { -n };
-            let [u0, u1, ..] = shared::rng::pcg4d(i, j, s.seed, 0x5ee1_1647).map(shared::rng::u32_to_unit_f32);
-            let (index, u0) = pick_light(view.lights, view.light_count, many, u0);
-            let light = view.lights[index as usize];
-            if light.triangle >= LIGHT_NOT_TRIANGLE {
-                continue;
-            }
-            let ltri = &view.triangles[light.triangle as usize];
-            let (b0, b1, b2) = uniform_triangle(u0, u1);
-            let on_light = interpolate(ltri, b0, b1, b2);
-            let to_light: Vec3 = on_light.p - at.p;
-            let nl = stored_normal(ltri);
-            // Emitters emit on the side of their stored normal (`surface::emitted`).
-            if !(dot(nf, to_light) > 0.0) || !(dot(nl, to_light) < 0.0) {
-                continue;
-            }
-            facing += 1;
-            let from = offset_ray_origin(at.p, at.error, nf);
-            // The side the point sees: the emitting one, by the test above.
-            let target = offset_ray_origin(on_light.p, on_light.error, nl);
-            let shadow = any(&view, params.traversal, from, target - from, 1.0 - shared::integrator::SHADOW_EPSILON);
-            if !shadow.hit.is_hit() {
-                seen += 1;
+            let [u0, u1, ..] = pcg4d(i, j, s.seed, 0x5ee1_1647).map(u32_to_unit_f32);
+            if let Some(sees) = shared::connection::first_hit_sees_light(&view, &params, x, y, u0, u1) {
+                facing += 1;
+                seen += u32::from(sees);
             }
         }
     }

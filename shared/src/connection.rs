@@ -23,9 +23,9 @@ use crate::numerics::offset_ray_origin;
 use crate::raycast::{any, closest, query_recorded};
 use crate::record::{NoRecord, Recorder, RAY_SHADOW};
 use crate::rng::Sampler;
-use crate::sampling::{cosine_hemisphere, orthonormal_basis, pick_light, power_heuristic3, uniform_triangle, INV_PI};
+use crate::sampling::{cosine_hemisphere, light_point, orthonormal_basis, pick_light, power_heuristic3, INV_PI};
 use crate::scene::SceneView;
-use crate::triangle::{hit_point, interpolate, stored_normal, TriangleHit};
+use crate::triangle::{hit_point, stored_normal, TriangleHit};
 use crate::vecmath::{dot, length_squared, xyz};
 #[allow(unused_imports)]
 use spirv_std::num_traits::Float;
@@ -74,11 +74,9 @@ pub fn first_hit_sees_light(scene: &SceneView, p: &RenderParams, x: f32, y: f32,
     if light.triangle >= LIGHT_NOT_TRIANGLE {
         return None;
     }
-    let ltri = &scene.triangles[light.triangle as usize];
-    let (b0, b1, b2) = uniform_triangle(u0, u1);
-    let on_light = interpolate(ltri, b0, b1, b2);
+    let lp = light_point(&scene.triangles[light.triangle as usize], u0, u1);
+    let (on_light, nl) = (lp.at, lp.n);
     let to_light = on_light.p - at.p;
-    let nl = stored_normal(ltri);
     // Emitters emit on the side of their stored normal (`surface::emitted`).
     if !(dot(nf, to_light) > 0.0) | !(dot(nl, to_light) < 0.0) {
         return None;
@@ -139,12 +137,10 @@ pub fn light_vertex(scene: &SceneView, p: &RenderParams, v: Variant, rng: &Sampl
     if light.triangle >= LIGHT_NOT_TRIANGLE {
         return LightVertex::NONE;
     }
-    let ltri = &scene.triangles[light.triangle as usize];
     let lmat = &scene.materials[scene.info[light.triangle as usize].material as usize];
     let le = Vec3::new(lmat.emission.x, lmat.emission.y, lmat.emission.z);
-    let (b0, b1, b2) = uniform_triangle(u1, ub);
-    let on_light = interpolate(ltri, b0, b1, b2);
-    let nl = stored_normal(ltri);
+    let lp = light_point(&scene.triangles[light.triangle as usize], u1, ub);
+    let (on_light, nl) = (lp.at, lp.n);
     let local = cosine_hemisphere(uc, ud);
     let (tb, bb) = orthonormal_basis(nl);
     let dir = tb * local.x + bb * local.y + nl * local.z;

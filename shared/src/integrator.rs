@@ -35,12 +35,12 @@ use crate::record::{
     END_ROULETTE, LIGHT_BLOCKED, LIGHT_DELTA, LIGHT_INVALID, LIGHT_UNBLOCKED, RAY_BOUNCE, RAY_CAMERA, RAY_SHADOW,
 };
 use crate::rng::Sampler;
-use crate::sampling::{pick_light, power_heuristic, power_heuristic3, uniform_triangle};
+use crate::sampling::{light_point, pick_light, power_heuristic, power_heuristic3};
 use crate::scene::SceneView;
 use crate::surface::{consistent, emission_at, hit_weights, material_at, shading_normal};
 #[cfg(not(target_arch = "spirv"))]
 use crate::surface::{looks_up_textures, resolve};
-use crate::triangle::{geometric_normal, hit_point, interpolate, stored_normal, TriangleHit};
+use crate::triangle::{geometric_normal, hit_point, stored_normal, TriangleHit};
 use crate::vecmath::{dot, length, length_squared, max_component, normalize, xyz};
 #[allow(unused_imports)]
 use spirv_std::num_traits::Float;
@@ -350,11 +350,9 @@ fn shade_vertex<R: Recorder>(
                 rec,
             );
         } else {
-            let ltri = &scene.triangles[light.triangle as usize];
-            let (b0, b1, b2) = uniform_triangle(u1, u_light);
-            let on_light = interpolate(ltri, b0, b1, b2);
+            let lp = light_point(&scene.triangles[light.triangle as usize], u1, u_light);
+            let (on_light, nl) = (lp.at, lp.n);
             let q = on_light.p;
-            let nl = stored_normal(ltri);
             let to_light = q - pos;
             let dist2 = length_squared(to_light);
             let wi = to_light * (1.0 / dist2.sqrt());
@@ -392,7 +390,7 @@ fn shade_vertex<R: Recorder>(
                 event.mis_weight = weight;
                 if !shadow.hit.is_hit() {
                     let lmat = &scene.materials[scene.info[light.triangle as usize].material as usize];
-                    let le = emission_at(scene, v, lmat, light.triangle, (b0, b1, b2));
+                    let le = emission_at(scene, v, lmat, light.triangle, lp.b);
                     let added = path.beta * f * le * (cos_i.abs() * weight / light_pdf);
                     path.radiance += added;
                     event.status = LIGHT_UNBLOCKED;

@@ -3,7 +3,8 @@
 //! Only exactly rounded operations and `trig`'s polynomials, so a warp gives the same bits on
 //! every device for the same uniforms.
 use crate::glam::Vec3;
-use crate::layout::Light;
+use crate::layout::{Light, Triangle};
+use crate::triangle::{interpolate, stored_normal, SurfacePoint};
 use crate::trig::{cos_quarter, sin_quarter};
 #[allow(unused_imports)]
 use spirv_std::num_traits::Float;
@@ -56,6 +57,25 @@ pub fn uniform_triangle(u1: f32, u2: f32) -> (f32, f32, f32) {
     let b0 = 1.0 - su;
     let b1 = u2 * su;
     (b0, b1, su - b1)
+}
+
+/// A point on an emitting triangle, uniform by area: where it lies (with its rounding bound), its
+/// barycentric weights (for an emission texture) and the triangle's stored normal, the side it
+/// emits on (`surface::emitted`).
+#[derive(Clone, Copy)]
+pub struct LightPoint {
+    pub at: SurfacePoint,
+    pub b: (f32, f32, f32),
+    pub n: Vec3,
+}
+
+/// The point that (`u1`, `u2`) pick on `tri` by `uniform_triangle`. Next-event estimation, the
+/// light subpath's first vertex and the connection rule's probe all place their light points
+/// here, so that the three see the same point for the same uniforms.
+#[inline(always)]
+pub fn light_point(tri: &Triangle, u1: f32, u2: f32) -> LightPoint {
+    let (b0, b1, b2) = uniform_triangle(u1, u2);
+    LightPoint { at: interpolate(tri, b0, b1, b2), b: (b0, b1, b2), n: stored_normal(tri) }
 }
 
 /// The power heuristic's weight of `f` among three strategies' densities `f`, `g`, `h`.

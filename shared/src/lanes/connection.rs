@@ -1,17 +1,16 @@
 //! `crate::connection` for sixteen samples in lockstep: each lane's light subpath and the
 //! connections of its eye vertices, the same sums as the scalar functions bit for bit.
-use super::integrator::{gather, trace_closest, unblocked};
+use super::integrator::{gather, light_points, pick_lights, trace_closest, unblocked, LightPoints};
 use super::sampler::LaneSampler;
-use super::warp::{
-    cosine_hemisphere, offset_ray_origin, orthonormal_basis, power_heuristic3, uniform_triangle, weights,
-};
-use super::{sqrt, F, LANES, M, U, V3};
+use super::warp::{cosine_hemisphere, offset_ray_origin, orthonormal_basis, power_heuristic3, weights};
+use super::{sqrt, F, M, U, V3};
 use crate::connection::CONNECT_TAG;
 use crate::layout::{RenderParams, LIGHT_NOT_TRIANGLE, NO_HIT};
-use crate::sampling::{pick_light, INV_PI};
+use crate::sampling::INV_PI;
 use crate::scene::SceneView;
 use core::simd::cmp::{SimdPartialEq, SimdPartialOrd};
 use core::simd::num::SimdFloat;
+use core::simd::Select;
 
 /// The first vertex of each lane's light subpath: a point on an emitting triangle (picked as
 /// next-event estimation picks it), a cosine-distributed direction, the surface it reaches.
@@ -59,24 +58,9 @@ pub(super) fn light_vertices(
 ) -> LightVertex {
     let zero = F::splat(0.0);
     let [ua, ub, uc, ud] = rng.independent_4d(CONNECT_TAG);
-    let (mut triangle, mut pmf, mut area, mut u1) = ([0u32; LANES], [0.0f32; LANES], [1.0f32; LANES], ua.to_array());
-    let mut ok = live;
-    for i in 0..LANES {
-        if live.test(i) {
-            let (index, u) = pick_light(scene.lights, scene.light_count, many, u1[i]);
-            u1[i] = u;
-            let light = scene.lights[index as usize];
-            if light.triangle >= LIGHT_NOT_TRIANGLE {
-                ok.set(i, false);
-                continue;
-            }
-            (triangle[i], pmf[i], area[i]) = (light.triangle, light.pmf, light.area);
-        }
-    }
-    let lg = gather(scene, &triangle, ok);
-    let (b0, b1, b2) = uniform_triangle(F::from_array(u1), ub);
-    let (q, q_error) = lg.tris.interpolate(b0, b1, b2);
-    let nl = lg.tris.n;
+    let picks = pick_lights(scene, many, ua, live);
+    let ok = live & U::from_array(picks.triangle).simd_lt(U::splat(LIGHT_NOT_TRIANGLE));
+    let LightPoints { g: lg, q, error: q_error, n: nl, .. } = light_points(scene, &picks.triangle, ok, picks.u, ub);
     let local = cosine_hemisphere(uc, ud);
     let (tb, bb) = orthonormal_basis(nl);
     let dir = tb.scale(local.x) + bb.scale(local.y) + nl.scale(local.z);
@@ -88,7 +72,8 @@ pub(super) fn light_vertices(
     let b = weights(hits.u, hits.v, hits.w);
     let (pos, error) = yg.tris.interpolate(b.0, b.1, b.2);
     let len2 = dir.dot(dir);
-    let pa = F::from_array(pmf) / F::from_array(area);
+    // Lanes without a light point carry 0, as no pick at all leaves them.
+    let pa = ok.select(picks.pmf / picks.area, zero);
     LightVertex {
         valid: hit & yg.albedo.any_positive(),
         pos,

@@ -168,6 +168,51 @@ pub(super) struct Gathered {
     pub(super) light: [u32; LANES],
 }
 
+/// The lights that `u` picks, lane by lane as `sampling::pick_light` picks them: for each live
+/// lane the light-table index, its triangle (or `LIGHT_NOT_TRIANGLE` kind), pmf and area, and
+/// `u` rescaled within the picked light's interval. Lanes not live keep `u` and pick nothing.
+pub(super) struct Picks {
+    pub(super) index: [u32; LANES],
+    pub(super) triangle: [u32; LANES],
+    pub(super) pmf: F,
+    pub(super) area: F,
+    pub(super) u: F,
+}
+
+#[inline(always)]
+pub(super) fn pick_lights(scene: &SceneView, many: bool, u: F, live: M) -> Picks {
+    let (mut index, mut triangle) = ([0u32; LANES], [0u32; LANES]);
+    let (mut pmf, mut area, mut u1) = ([0.0f32; LANES], [1.0f32; LANES], u.to_array());
+    for i in 0..LANES {
+        if live.test(i) {
+            let (k, rescaled) = pick_light(scene.lights, scene.light_count, many, u1[i]);
+            let light = scene.lights[k as usize];
+            (index[i], u1[i]) = (k, rescaled);
+            (triangle[i], pmf[i], area[i]) = (light.triangle, light.pmf, light.area);
+        }
+    }
+    Picks { index, triangle, pmf: F::from_array(pmf), area: F::from_array(area), u: F::from_array(u1) }
+}
+
+/// Each live lane's point on its picked emitting triangle, `sampling::light_point` lane by lane,
+/// with what the lanes need of that triangle (`gather`).
+pub(super) struct LightPoints {
+    pub(super) g: Gathered,
+    pub(super) b: (F, F, F),
+    pub(super) q: V3,
+    pub(super) error: F,
+    pub(super) n: V3,
+}
+
+#[inline(always)]
+pub(super) fn light_points(scene: &SceneView, triangle: &[u32; LANES], live: M, u1: F, u2: F) -> LightPoints {
+    let g = gather(scene, triangle, live);
+    let b = uniform_triangle(u1, u2);
+    let (q, error) = g.tris.interpolate(b.0, b.1, b.2);
+    let n = g.tris.n;
+    LightPoints { g, b, q, error, n }
+}
+
 #[inline(always)]
 pub(super) fn gather(scene: &SceneView, triangle: &[u32; LANES], live: M) -> Gathered {
     // Rows of the sixteen lanes' values: v0, v1, v2 (x, y, z), the stored normal, albedo and
@@ -536,43 +581,39 @@ fn next_event(
 ) {
     let zero = F::splat(0.0);
     let (nf, ns) = (sides.nf, sides.ns);
-    let mut triangle = [0u32; LANES];
-    let (mut pmf, mut area, mut u1) = ([0.0f32; LANES], [1.0f32; LANES], u_select.to_array());
+    let picks = pick_lights(scene, many, u_select, alive);
+    let (pmf, area) = (picks.pmf, picks.area);
     let mut on_triangle = alive;
-    for i in 0..LANES {
-        if alive.test(i) {
-            let (index, u) = pick_light(scene.lights, scene.light_count, many, u1[i]);
-            u1[i] = u;
-            let light = scene.lights[index as usize];
-            (triangle[i], pmf[i], area[i]) = (light.triangle, light.pmf, light.area);
-            let other =
-                (v.has(FEATURE_ENVIRONMENT_MAP) | v.has(FEATURE_PUNCTUAL)) & (light.triangle >= LIGHT_NOT_TRIANGLE);
-            if let (Some(k), true) = (kinds, other) {
-                // The environment map or a punctual light: the scalar integrator's sample.
-                on_triangle.set(i, false);
-                let mut sum = radiance.lane(i);
-                sample_other_light(
-                    scene,
-                    p,
-                    v,
-                    beta.lane(i),
-                    &mut sum,
-                    k.mats[i],
-                    light.triangle,
-                    light.pmf,
-                    index,
-                    pos.lane(i),
-                    spawn.lane(i),
-                    Vec3::splat(error[i]),
-                    nf.lane(i),
-                    ns.lane(i),
-                    k.wo.lane(i),
-                    k.front.test(i),
-                    u1[i],
-                    u_light[i],
-                    &mut NoRecord,
-                );
-                (radiance.x[i], radiance.y[i], radiance.z[i]) = (sum.x, sum.y, sum.z);
+    if v.has(FEATURE_ENVIRONMENT_MAP) | v.has(FEATURE_PUNCTUAL) {
+        for i in 0..LANES {
+            if alive.test(i) & (picks.triangle[i] >= LIGHT_NOT_TRIANGLE) {
+                if let Some(k) = kinds {
+                    // The environment map or a punctual light: the scalar integrator's sample.
+                    on_triangle.set(i, false);
+                    let mut sum = radiance.lane(i);
+                    sample_other_light(
+                        scene,
+                        p,
+                        v,
+                        beta.lane(i),
+                        &mut sum,
+                        k.mats[i],
+                        picks.triangle[i],
+                        pmf[i],
+                        picks.index[i],
+                        pos.lane(i),
+                        spawn.lane(i),
+                        Vec3::splat(error[i]),
+                        nf.lane(i),
+                        ns.lane(i),
+                        k.wo.lane(i),
+                        k.front.test(i),
+                        picks.u[i],
+                        u_light[i],
+                        &mut NoRecord,
+                    );
+                    (radiance.x[i], radiance.y[i], radiance.z[i]) = (sum.x, sum.y, sum.z);
+                }
             }
         }
     }
@@ -580,20 +621,18 @@ fn next_event(
     if !alive.any() {
         return;
     }
-    let mut lg = gather(scene, &triangle, alive);
-    let (b0, b1, b2) = uniform_triangle(F::from_array(u1), u_light);
+    let LightPoints { g: mut lg, b: (b0, b1, b2), q, error: q_error, n: nl } =
+        light_points(scene, &picks.triangle, alive, picks.u, u_light);
     if v.has(FEATURE_TEXTURES) & !scene.textures.is_empty() {
         // `surface::emission_at`: an emission texture at the point picked.
         for i in 0..LANES {
             if alive.test(i) {
                 let m = &scene.materials[lg.material[i] as usize];
-                let e = emission_at(scene, v, m, triangle[i], (b0[i], b1[i], b2[i]));
+                let e = emission_at(scene, v, m, picks.triangle[i], (b0[i], b1[i], b2[i]));
                 (lg.emission.x[i], lg.emission.y[i], lg.emission.z[i]) = (e.x, e.y, e.z);
             }
         }
     }
-    let (q, q_error) = lg.tris.interpolate(b0, b1, b2);
-    let nl = lg.tris.n;
     let to_light = q - pos;
     let dist2 = to_light.dot(to_light);
     let wi = to_light.scale(F::splat(1.0) / sqrt(dist2));
@@ -617,7 +656,7 @@ fn next_event(
     if !valid.any() {
         return;
     }
-    let light_pdf = F::from_array(pmf) * dist2 / (cos_l * F::from_array(area));
+    let light_pdf = pmf * dist2 / (cos_l * area);
     let target = offset_ray_origin(q, q_error, nl);
     let behind = nf.dot(wi).simd_lt(zero);
     let from =
@@ -625,7 +664,7 @@ fn next_event(
     let shadow_dir = target - from;
     let unblocked = unblocked(scene, p, from, shadow_dir, valid);
     let weight = if bidir {
-        let q2 = F::from_array(pmf) / F::from_array(area) * nf.dot(wi).abs() * inv_pi_a;
+        let q2 = pmf / area * nf.dot(wi).abs() * inv_pi_a;
         power_heuristic3(light_pdf, pdf_bsdf, q2)
     } else {
         power_heuristic(light_pdf, pdf_bsdf)

@@ -584,36 +584,34 @@ fn next_event(
     let picks = pick_lights(scene, many, u_select, alive);
     let (pmf, area) = (picks.pmf, picks.area);
     let mut on_triangle = alive;
-    if v.has(FEATURE_ENVIRONMENT_MAP) | v.has(FEATURE_PUNCTUAL) {
+    if let (Some(k), true) = (kinds, v.has(FEATURE_ENVIRONMENT_MAP) | v.has(FEATURE_PUNCTUAL)) {
         for i in 0..LANES {
             if alive.test(i) & (picks.triangle[i] >= LIGHT_NOT_TRIANGLE) {
-                if let Some(k) = kinds {
-                    // The environment map or a punctual light: the scalar integrator's sample.
-                    on_triangle.set(i, false);
-                    let mut sum = radiance.lane(i);
-                    sample_other_light(
-                        scene,
-                        p,
-                        v,
-                        beta.lane(i),
-                        &mut sum,
-                        k.mats[i],
-                        picks.triangle[i],
-                        pmf[i],
-                        picks.index[i],
-                        pos.lane(i),
-                        spawn.lane(i),
-                        Vec3::splat(error[i]),
-                        nf.lane(i),
-                        ns.lane(i),
-                        k.wo.lane(i),
-                        k.front.test(i),
-                        picks.u[i],
-                        u_light[i],
-                        &mut NoRecord,
-                    );
-                    (radiance.x[i], radiance.y[i], radiance.z[i]) = (sum.x, sum.y, sum.z);
-                }
+                // The environment map or a punctual light: the scalar integrator's sample.
+                on_triangle.set(i, false);
+                let mut sum = radiance.lane(i);
+                sample_other_light(
+                    scene,
+                    p,
+                    v,
+                    beta.lane(i),
+                    &mut sum,
+                    k.mats[i],
+                    picks.triangle[i],
+                    pmf[i],
+                    picks.index[i],
+                    pos.lane(i),
+                    spawn.lane(i),
+                    Vec3::splat(error[i]),
+                    nf.lane(i),
+                    ns.lane(i),
+                    k.wo.lane(i),
+                    k.front.test(i),
+                    picks.u[i],
+                    u_light[i],
+                    &mut NoRecord,
+                );
+                (radiance.x[i], radiance.y[i], radiance.z[i]) = (sum.x, sum.y, sum.z);
             }
         }
     }

@@ -92,6 +92,9 @@ LADDERS = {
     # what the connections alone buy.
     "kdtrace-cpu-connect": [4, 16, 64, 256, 1024, 4096],
     "kdtrace-cpu-pathtrace": [4, 16, 64, 256, 1024, 4096],
+    # The connections with each sample's own light subpath instead of the CPU's pool
+    # (`--light-pool off`, the GPU's estimator): what the pool alone buys.
+    "kdtrace-cpu-ownlight": [4, 16, 64, 256, 1024, 4096],
     # Adaptive sampling: the rungs are thresholds (`--adaptive`), each pixel up to 8192 spp.
     "kdtrace-cpu-adaptive": [0.2, 0.1, 0.05, 0.03, 0.02],
     "kdtrace-cpu-asyougo": [0.2, 0.1, 0.05, 0.03, 0.02],
@@ -138,6 +141,7 @@ def render(renderer, scene, spp, seed, out, a):
             "-kd": ["--traversal", "full"],
             "-connect": ["--connect", "on"],
             "-pathtrace": ["--connect", "off"],
+            "-ownlight": ["--light-pool", "off"],
             "-adaptive": ["--adaptive", str(spp), "--adaptive-mode", "pilot"],
             "-asyougo": ["--adaptive", str(spp), "--adaptive-mode", "as-you-go"],
         }

@@ -1,7 +1,8 @@
 //! Light subpaths connected to the eye vertices (`shared::connection`): the estimator keeps the
 //! image's mean (a per-pixel t-test against path tracing alone, with the power to catch a light
 //! 10% brighter), lowers the noise of a room lit mostly by bounced light, and runs only where the
-//! setting and the scene allow it. Its bit-identity between the CPU's variants and its generic
+//! setting and the scene allow it; the CPU's pool of light subpaths keeps the mean too and
+//! lowers the noise further. Its bit-identity between the CPU's variants and its generic
 //! code, and its agreement with lavapipe, are in `specialisation.rs`; the lane integrator's
 //! identity with the scalar one in `cli.rs`.
 #[path = "common/paths.rs"]
@@ -33,22 +34,32 @@ fn render(c: &Compiled, s: &RenderSettings, connect: Connect, seed: u32, spp: u3
     cpu::render(c, &RenderSettings { connect, seed, spp, ..*s }, &no_progress).unwrap()
 }
 
+/// `render` with each sample's own light subpath instead of the pool (the GPU's estimator).
+fn render_own(c: &Compiled, s: &RenderSettings, seed: u32, spp: u32) -> Rendered {
+    render(c, &RenderSettings { light_pool: false, ..*s }, Connect::On, seed, spp)
+}
+
 #[test]
 fn connections_keep_the_mean_of_path_tracing() {
     let (c, s) = room(1.0);
     // Path tracing's estimate is the heavier-tailed one (most of the room is lit by bounced
     // light): with more samples its variance estimate is trustworthy.
-    let on = render(&c, &s, Connect::On, 1, 256);
     let off = render(&c, &s, Connect::Off, 2, 2048);
-    let t = two_image_test(&on.stats().unwrap(), &off.stats().unwrap(), 0.01).unwrap();
-    eprintln!("connections vs path tracing: {} of {} rejected, smallest p {:.2e}", t.rejected, t.tests, t.min_p);
-    assert!(t.pass, "{t:?}");
-    assert!(t.tests >= 32 * 24 * 3 * 9 / 10, "too few pixels could be tested: {}", t.tests);
-    // The test has power: path tracing with the lamp 10% brighter is caught.
     let (brighter, _) = room(1.1);
-    let off = render(&brighter, &s, Connect::Off, 2, 2048);
-    let t = two_image_test(&on.stats().unwrap(), &off.stats().unwrap(), 0.01).unwrap();
-    assert!(!t.pass, "a 10% brighter lamp went unnoticed: {t:?}");
+    let off_brighter = render(&brighter, &s, Connect::Off, 2, 2048);
+    for (name, on) in [("the pool", render(&c, &s, Connect::On, 1, 256)), ("own subpaths", render_own(&c, &s, 1, 256))]
+    {
+        let t = two_image_test(&on.stats().unwrap(), &off.stats().unwrap(), 0.01).unwrap();
+        eprintln!(
+            "connections ({name}) vs path tracing: {} of {} rejected, smallest p {:.2e}",
+            t.rejected, t.tests, t.min_p
+        );
+        assert!(t.pass, "{name}: {t:?}");
+        assert!(t.tests >= 32 * 24 * 3 * 9 / 10, "{name}: too few pixels could be tested: {}", t.tests);
+        // The test has power: path tracing with the lamp 10% brighter is caught.
+        let t = two_image_test(&on.stats().unwrap(), &off_brighter.stats().unwrap(), 0.01).unwrap();
+        assert!(!t.pass, "{name}: a 10% brighter lamp went unnoticed: {t:?}");
+    }
 }
 
 /// The image's expected relative MSE from its own per-pixel variance: Σ var / n / (mean² + 0.01)
@@ -63,6 +74,18 @@ fn expected_rel_mse(r: &Rendered) -> f64 {
         }
     }
     sum / (mean.len() * 3) as f64
+}
+
+/// Each eye vertex picking among `POOL_CANDIDATES` light vertices of the pool, by their
+/// unshadowed contributions, lowers the noise against one light subpath of its own, for the
+/// same shadow rays.
+#[test]
+fn the_pool_lowers_the_noise_of_the_connections() {
+    let (c, s) = room(1.0);
+    let (pool, own) = (render(&c, &s, Connect::On, 3, 64), render_own(&c, &s, 3, 64));
+    let (e_pool, e_own) = (expected_rel_mse(&pool), expected_rel_mse(&own));
+    eprintln!("expected relMSE at 64 spp: {e_pool:.3e} from the pool, {e_own:.3e} from own light subpaths");
+    assert!(e_pool < 0.8 * e_own, "{e_pool:.3e} from the pool, {e_own:.3e} from own light subpaths");
 }
 
 #[test]

@@ -11,6 +11,17 @@
 //! emitter-hit and light-sample weights take the third density from `inv_pi_area` of the eye
 //! vertex before, and the three weights of a path sum to one.
 //!
+//! On the CPU the light subpaths are not the sample's own but drawn from a pool that all pixels
+//! share (`LightPool`): the host traces `POOL_SLOTS` of them for every block of `POOL_SAMPLES`
+//! samples, and each eye vertex weighs `POOL_CANDIDATES` consecutive ones from a random slot by
+//! their unshadowed contributions, picks one in proportion and traces one shadow ray to it
+//! (resampled importance sampling: Talbot et al. 2005; the pool of light vertices: Davidovič et
+//! al. 2014, "Progressive light transport simulation on the GPU", the light vertex cache). The
+//! estimate is unbiased whatever the weights, and costs one shadow ray as before, but an eye
+//! vertex in a gallery now connects to the floor points that light it most. As the strategy is
+//! better than one connection, its density in the three strategies' weights is counted
+//! `POOL_WEIGHT` times (any factor keeps the weights summing to one).
+//!
 //! It serves scenes where `features::connection_applies`: Lambertian vertices at both ends (the
 //! BSDF is albedo / pi), flat normals, emitting triangles. `RenderParams::connect` switches it on
 //! and `FEATURE_CONNECT` compiles it; the lane integrator runs the same estimator sixteen samples
@@ -32,6 +43,65 @@ use spirv_std::num_traits::Float;
 
 /// The hash key of the light subpath's uniforms (`Sampler::independent_4d`).
 pub const CONNECT_TAG: u32 = 0xB1D1_0001;
+/// The hash key (plus the bounce) of a pooled connection's two uniforms: the first slot and the
+/// pick among the candidates.
+pub const POOL_PICK_TAG: u32 = 0xB1D1_0100;
+/// Samples of a pixel that draw from one pool of light subpaths: sample `s` from block
+/// `s / POOL_SAMPLES`'s.
+pub const POOL_SAMPLES: u32 = 8;
+/// Light subpaths in a block's pool (a power of two).
+pub const POOL_SLOTS: u32 = 4096;
+/// Light vertices an eye vertex weighs before it picks one.
+pub const POOL_CANDIDATES: usize = 32;
+/// The factor on the pooled connection's density in the multiple-importance weights.
+pub const POOL_WEIGHT: f32 = 16.0;
+/// Floats of a pooled light vertex (`LightVertex::record`): position, stored normal, the normal's
+/// cosine to the light point, the light point's area density, the light subpath's density q1,
+/// albedo times power, rounding error; three unused.
+pub const POOL_RECORD: usize = 16;
+/// Seeds the pool's hash apart from the pixels' samplers.
+#[cfg(not(target_arch = "spirv"))]
+const POOL_SEED: u32 = 0x7f4a_7c15;
+
+/// The light subpaths of blocks `first_block ..` (`POOL_SLOTS` records of `POOL_RECORD` floats
+/// each per block), shared by every pixel's samples in those blocks.
+#[cfg(not(target_arch = "spirv"))]
+#[derive(Clone, Copy, Default)]
+pub struct LightPool<'a> {
+    pub records: &'a [f32],
+    pub first_block: u32,
+}
+
+#[cfg(not(target_arch = "spirv"))]
+impl<'a> LightPool<'a> {
+    /// The records of sample `sample`'s block.
+    #[inline(always)]
+    pub fn of_sample(&self, sample: u32) -> &'a [f32] {
+        let per = POOL_SLOTS as usize * POOL_RECORD;
+        let at = (sample / POOL_SAMPLES - self.first_block) as usize * per;
+        &self.records[at..at + per]
+    }
+}
+
+/// The factor on the connection strategy's density in the weights: `POOL_WEIGHT` for the pooled
+/// connections, 1 for the sample's own light subpath.
+#[inline(always)]
+pub fn connection_weight(p: &RenderParams) -> f32 {
+    if p.light_pool != 0 {
+        POOL_WEIGHT
+    } else {
+        1.0
+    }
+}
+
+/// Slot `slot` of block `block`'s pool: a light subpath as `light_vertex` traces one, from
+/// uniforms hashed from the block, the slot and the seed. `v` only picks the light as the
+/// render's variant does.
+#[cfg(not(target_arch = "spirv"))]
+pub fn pool_record(scene: &SceneView, p: &RenderParams, v: Variant, block: u32, slot: u32) -> [f32; POOL_RECORD] {
+    let rng = Sampler::new(crate::rng::SAMPLER_INDEPENDENT, slot, block, p.seed ^ POOL_SEED);
+    light_vertex(scene, p, v, &rng).record()
+}
 
 /// Whether the connection strategy runs for variant `v` with `p`: compiled in (`FEATURE_CONNECT`),
 /// asked for (`RenderParams::connect`, which the host sets only where the scene's features allow
@@ -113,6 +183,18 @@ pub struct LightVertex {
 }
 
 impl LightVertex {
+    /// The vertex as a pool record (`POOL_RECORD`); zeros, which no eye vertex picks, where it
+    /// is not valid.
+    #[cfg(not(target_arch = "spirv"))]
+    pub fn record(&self) -> [f32; POOL_RECORD] {
+        if !self.valid {
+            return [0.0; POOL_RECORD];
+        }
+        let (y, n, w) = (self.pos, self.n, self.albedo * self.power);
+        let q1 = self.pa * self.dist2 / self.cos_l;
+        [y.x, y.y, y.z, n.x, n.y, n.z, dot(n, self.to_light), self.pa, q1, w.x, w.y, w.z, self.error.x, 0.0, 0.0, 0.0]
+    }
+
     pub const NONE: LightVertex = LightVertex {
         pos: Vec3::ZERO,
         error: Vec3::ZERO,
@@ -215,4 +297,95 @@ pub fn connect<R: Recorder>(
             *radiance += beta * albedo * lv.albedo * lv.power * (geo * w2);
         }
     }
+}
+
+/// The pooled connection at an eye vertex (Lambertian, flat normal `nf` toward the ray's
+/// origin): weighs the `POOL_CANDIDATES` records of `records` from the slot `u[0]` picks by
+/// their unshadowed contributions (MIS-weighted as `connect`'s), picks one in proportion by
+/// `u[1]` and adds its contribution times the mean weight over the picked one's, if a shadow
+/// ray reaches it.
+#[cfg(not(target_arch = "spirv"))]
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub fn connect_pooled<R: Recorder>(
+    scene: &SceneView,
+    p: &RenderParams,
+    records: &[f32],
+    u: [f32; 2],
+    pos: Vec3,
+    spawn: Vec3,
+    nf: Vec3,
+    albedo: Vec3,
+    beta: Vec3,
+    radiance: &mut Vec3,
+    rec: &mut R,
+) {
+    let start = pool_start(u[0]);
+    let mut c = [Vec3::ZERO; POOL_CANDIDATES];
+    let mut w = [0.0f32; POOL_CANDIDATES];
+    let mut sum = 0.0f32;
+    for j in 0..POOL_CANDIDATES {
+        let r = pool_slot(records, start, j);
+        let (y, ny) = (Vec3::new(r[0], r[1], r[2]), Vec3::new(r[3], r[4], r[5]));
+        let d = y - pos;
+        let dist2 = dot(d, d);
+        let dir = d * (1.0 / dist2.sqrt());
+        let cos_e = dot(nf, dir);
+        let cos_ye = dot(ny, dir);
+        // The cosine at the light vertex toward the light point, on the eye vertex's side.
+        let cos_yl = if cos_ye < 0.0 { r[6] } else { -r[6] };
+        if (cos_e > 0.0) & (cos_yl > 0.0) & (dist2 > 0.0) {
+            let geo = cos_e * cos_ye.abs() / dist2;
+            let q0 = cos_yl * INV_PI;
+            let q2 = r[7] * cos_yl / geo * POOL_WEIGHT;
+            let w2 = power_heuristic3(q2, q0, r[8]);
+            let cj = beta * albedo * Vec3::new(r[9], r[10], r[11]) * (geo * w2);
+            let wj = cj.x + cj.y + cj.z;
+            if (wj > 0.0) & (wj < f32::INFINITY) {
+                (c[j], w[j]) = (cj, wj);
+                sum += wj;
+            }
+        }
+    }
+    if !((sum > 0.0) & (sum < f32::INFINITY)) {
+        return;
+    }
+    let mut pick = u[1] * sum;
+    let mut y = 0;
+    for (j, &wj) in w.iter().enumerate() {
+        if wj > 0.0 {
+            y = j;
+            if pick < wj {
+                break;
+            }
+            pick -= wj;
+        }
+    }
+    let r = pool_slot(records, start, y);
+    let (at, ny) = (Vec3::new(r[0], r[1], r[2]), Vec3::new(r[3], r[4], r[5]));
+    let d = at - pos;
+    let nfy = if dot(ny, d * (1.0 / dot(d, d).sqrt())) < 0.0 { ny } else { -ny };
+    let target = offset_ray_origin(at, Vec3::splat(r[12]), nfy);
+    let (shadow_dir, shadow_t) = (target - spawn, 1.0 - SHADOW_EPSILON);
+    rec.ray(RAY_SHADOW, spawn, shadow_dir, shadow_t);
+    let shadow = query_recorded(scene, p.traversal, spawn, shadow_dir, shadow_t, true, rec);
+    rec.traced(shadow.hit.triangle, shadow.hit.t, shadow.hit.nodes, shadow.hit.tests, shadow.restarts);
+    if !shadow.hit.is_hit() {
+        *radiance += c[y] * (sum / (POOL_CANDIDATES as f32 * w[y]));
+    }
+}
+
+/// The first candidate's slot from a uniform.
+#[cfg(not(target_arch = "spirv"))]
+#[inline(always)]
+pub fn pool_start(u: f32) -> u32 {
+    ((u * POOL_SLOTS as f32) as u32).min(POOL_SLOTS - 1)
+}
+
+/// Candidate `j`'s record: slot `start + j`, wrapping.
+#[cfg(not(target_arch = "spirv"))]
+#[inline(always)]
+pub fn pool_slot(records: &[f32], start: u32, j: usize) -> &[f32] {
+    let at = ((start + j as u32) & (POOL_SLOTS - 1)) as usize * POOL_RECORD;
+    &records[at..at + POOL_RECORD]
 }

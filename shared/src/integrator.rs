@@ -13,7 +13,9 @@
 //! hits, emission, light and BSDF samples, roulette); the renderers (`render_samples`) pass
 //! `NoRecord`, whose hooks compile to nothing.
 use crate::camera::primary_direction;
-use crate::connection::{connect, connects, inv_pi_area, light_vertex, LightVertex};
+#[cfg(not(target_arch = "spirv"))]
+use crate::connection::connect_pooled;
+use crate::connection::{connect, connection_weight, connects, inv_pi_area, light_vertex, LightVertex};
 use crate::environment;
 use crate::exp::exp_neg;
 use crate::features::{
@@ -123,7 +125,7 @@ fn trace_path<R: Recorder>(
     path.bidir = connects(scene, p, v);
     // Not a field of `Path`: naga sizes a struct holding `Vec3`s to a multiple of 16 bytes, so
     // nested in another one its end would overlap the next member.
-    let lv = if path.bidir { light_vertex(scene, p, v, &rng) } else { LightVertex::NONE };
+    let lv = if path.bidir & (p.light_pool == 0) { light_vertex(scene, p, v, &rng) } else { LightVertex::NONE };
     let mut primary = NO_HIT;
     let mut alive = true;
     while alive {
@@ -290,7 +292,7 @@ fn shade_vertex<R: Recorder>(
             let cos_l = dot(n, normalize(dir)).abs();
             let light_pdf = light.pmf * dist2 / (cos_l * light.area);
             weight = if path.bidir {
-                let q2 = light.pmf / light.area * path.prev_cos * path.prev_inv_pi_a;
+                let q2 = light.pmf / light.area * path.prev_cos * path.prev_inv_pi_a * connection_weight(p);
                 power_heuristic3(path.bsdf_pdf, light_pdf, q2)
             } else {
                 power_heuristic(path.bsdf_pdf, light_pdf)
@@ -382,7 +384,7 @@ fn shade_vertex<R: Recorder>(
                 event.status = LIGHT_BLOCKED;
                 event.light_pdf = light_pdf;
                 let weight = if path.bidir {
-                    let q2 = light.pmf / light.area * dot(nf, wi).abs() * inv_pi_a;
+                    let q2 = light.pmf / light.area * dot(nf, wi).abs() * inv_pi_a * connection_weight(p);
                     power_heuristic3(light_pdf, pdf_bsdf, q2)
                 } else {
                     power_heuristic(light_pdf, pdf_bsdf)
@@ -414,6 +416,15 @@ fn shade_vertex<R: Recorder>(
 
     if path.bidir & (path.bounce < v.max_bounces) {
         let albedo = Vec3::new(mat.albedo.x, mat.albedo.y, mat.albedo.z);
+        #[cfg(not(target_arch = "spirv"))]
+        if p.light_pool != 0 {
+            let [u0, u1, _, _] = rng.independent_4d(crate::connection::POOL_PICK_TAG + path.bounce);
+            let records = scene.light_pool.of_sample(rng.sample());
+            connect_pooled(scene, p, records, [u0, u1], pos, spawn, nf, albedo, path.beta, &mut path.radiance, rec);
+        } else {
+            connect(scene, p, lv, pos, spawn, nf, albedo, path.beta, &mut path.radiance, rec);
+        }
+        #[cfg(target_arch = "spirv")]
         connect(scene, p, lv, pos, spawn, nf, albedo, path.beta, &mut path.radiance, rec);
     }
 

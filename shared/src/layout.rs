@@ -389,8 +389,11 @@ pub struct RenderParams {
     /// 1: light subpaths connect to the eye vertices (`features::FEATURE_CONNECT`); the host
     /// sets it only where `features::connection_applies`.
     pub connect: u32,
+    /// 1: the CPU's connections draw their light vertices from the pool of light subpaths shared
+    /// by all pixels (`connection::connect_pooled`, `SceneView::light_pool`); 0: each sample
+    /// traces its own (the GPU's way).
+    pub light_pool: u32,
     /// To a multiple of 16 bytes (scalars: a uniform block's arrays would need a 16-byte stride).
-    pub _pad0: u32,
     pub _pad1: u32,
     pub _pad2: u32,
 }

@@ -201,6 +201,12 @@ impl Sampler {
         [u32_to_unit_f32(h[0]), u32_to_unit_f32(h[1]), u32_to_unit_f32(h[2]), u32_to_unit_f32(h[3])]
     }
 
+    /// The sample's index within its pixel.
+    #[inline]
+    pub fn sample(&self) -> u32 {
+        self.sample
+    }
+
     /// Sets drawn so far.
     #[inline]
     pub fn set(&self) -> u32 {

@@ -36,6 +36,10 @@ pub struct SceneView<'a> {
     /// (`lanes::split`); empty unless the host chose one.
     #[cfg(not(target_arch = "spirv"))]
     pub split: SplitView<'a>,
+    /// The light subpaths shared by all pixels that the CPU's connections draw from
+    /// (`connection::LightPool`); empty unless the host traced them.
+    #[cfg(not(target_arch = "spirv"))]
+    pub light_pool: crate::connection::LightPool<'a>,
 }
 
 impl<'a> SceneView<'a> {
@@ -72,6 +76,8 @@ impl<'a> SceneView<'a> {
             wide: WideView::default(),
             #[cfg(not(target_arch = "spirv"))]
             split: SplitView::default(),
+            #[cfg(not(target_arch = "spirv"))]
+            light_pool: crate::connection::LightPool::default(),
         }
     }
 }

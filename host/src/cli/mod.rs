@@ -155,6 +155,7 @@ fn settings(a: &ImageArgs, loaded: &mut Loaded, scene: &Path) -> Result<RenderSe
     s.dispatch = a.dispatch;
     s.aov = a.aov;
     s.specialize = a.specialize == args::Switch::On;
+    s.light_pool = a.light_pool == args::Switch::On;
     s.adaptive = a.adaptive.map(|threshold| Adaptive { threshold, min_spp: a.min_spp, mode: a.adaptive_mode });
     s.check()?;
     Ok(s)

@@ -3,7 +3,7 @@
 //! Non-finite samples are zeroed and logged with their pixel.
 use crate::render::blocks::{Node, Sums, BLOCK_SAMPLES};
 use crate::render::progressive::{Blocks, Progressive, RunningSums};
-use crate::render::{adaptive, Compiled, Progress, Rendered};
+use crate::render::{adaptive, light_pool, Compiled, Progress, Rendered};
 use crate::settings::{Aov, RenderSettings};
 use anyhow::{bail, Result};
 use rayon::prelude::*;
@@ -319,7 +319,7 @@ pub fn render(c: &Compiled, s: &RenderSettings, progress: Progress) -> Result<Re
     let n = (w * h) as usize;
     if let Some(a) = s.adaptive {
         let render_samples = variant_rendering(c, s);
-        let params = c.params(s, 0, 0)?;
+        let params = light_pool::pooled(c.params(s, 0, 0)?, s);
         let mut dev = CpuPasses {
             scene: c.view(&params),
             params,
@@ -419,7 +419,7 @@ impl<'a> CpuSums<'a> {
         let n = s.width as usize * s.height as usize;
         Ok(Self {
             c,
-            params: c.params(&s, 0, 0)?,
+            params: light_pool::pooled(c.params(&s, 0, 0)?, &s),
             render_samples: variant_rendering(c, &s),
             s,
             sum: vec![Vec4::ZERO; n],
@@ -437,6 +437,8 @@ impl<'a> CpuSums<'a> {
         let (c, w, render_samples) = (self.c, self.s.width as usize, self.render_samples);
         let params = RenderParams { sample_start: start, sample_count: count, ..self.params };
         let scene = c.view(&params);
+        let (pool, first) = light_pool::pool_of(&scene, &params, start, start + count);
+        let scene = light_pool::view(&scene, &pool, first);
         let n = self.sum.len();
         let (runs, per) = if two { (2, BLOCK_SAMPLES) } else { (1, count) };
         let (next, next_sq) = &mut self.next;
@@ -623,7 +625,11 @@ struct CpuPasses<'a> {
 
 impl adaptive::Passes for CpuPasses<'_> {
     fn pass(&mut self, ranges: &[[u32; 2]]) -> Result<()> {
-        let (w, scene, params, f) = (self.width, &self.scene, &self.params, self.render_samples);
+        let (w, params, f) = (self.width, &self.params, self.render_samples);
+        let (start, end) =
+            ranges.iter().filter(|r| r[1] > 0).fold((u32::MAX, 0), |(lo, hi), r| (lo.min(r[0]), hi.max(r[0] + r[1])));
+        let (pool, first) = light_pool::pool_of(&self.scene, params, start, end);
+        let scene = &light_pool::view(&self.scene, &pool, first);
         self.sum
             .par_chunks_mut(w)
             .zip(self.sum_sq.par_chunks_mut(w))

@@ -9,6 +9,7 @@ pub mod cpu;
 pub mod features;
 pub mod gpu;
 pub mod kdc;
+pub mod light_pool;
 pub mod load;
 pub mod memory;
 pub mod multi;

@@ -202,6 +202,10 @@ pub struct RenderSettings {
     pub specialize: bool,
     /// Adaptive sampling; `None` gives every pixel `spp` samples.
     pub adaptive: Option<Adaptive>,
+    /// The CPU's connections draw their light vertices from a pool of light subpaths shared by
+    /// all pixels (`shared::connection::connect_pooled`); off, each sample traces its own, as
+    /// the GPU does (its images equal the GPU's bit for bit on lavapipe).
+    pub light_pool: bool,
 }
 
 impl RenderSettings {
@@ -225,6 +229,7 @@ impl RenderSettings {
             time_limit_s: None,
             specialize: true,
             adaptive: None,
+            light_pool: true,
         }
     }
 

@@ -124,6 +124,7 @@ impl SceneSettings {
             time_limit_s: self.time_limit_s,
             specialize: true,
             adaptive: None,
+            light_pool: true,
         };
         s.check()?;
         camera.basis(aspect)?;

@@ -4,13 +4,18 @@ use super::integrator::{gather, light_points, pick_lights, trace_closest, unbloc
 use super::sampler::LaneSampler;
 use super::warp::{cosine_hemisphere, offset_ray_origin, orthonormal_basis, power_heuristic3, weights};
 use super::{sqrt, F, M, U, V3};
-use crate::connection::CONNECT_TAG;
+use crate::connection::{
+    CONNECT_TAG, POOL_CANDIDATES, POOL_PICK_TAG, POOL_RECORD, POOL_SAMPLES, POOL_SLOTS, POOL_WEIGHT,
+};
 use crate::layout::{RenderParams, LIGHT_NOT_TRIANGLE, NO_HIT};
 use crate::sampling::INV_PI;
 use crate::scene::SceneView;
+use core::simd::cmp::SimdOrd;
 use core::simd::cmp::{SimdPartialEq, SimdPartialOrd};
 use core::simd::num::SimdFloat;
+use core::simd::num::SimdUint;
 use core::simd::Select;
+use core::simd::Simd;
 
 /// The first vertex of each lane's light subpath: a point on an emitting triangle (picked as
 /// next-event estimation picks it), a cosine-distributed direction, the surface it reaches.
@@ -125,5 +130,98 @@ pub(super) fn connect(
     let target = offset_ray_origin(lv.pos, lv.error, nfy);
     let open = unblocked(scene, p, spawn, target - spawn, valid);
     let added = (beta * albedo * lv.albedo * lv.power).scale(geo * w2);
+    *radiance = V3::select(open, *radiance + added, *radiance);
+}
+
+/// `crate::connection::connect_pooled` for sixteen eye vertices: each lane weighs its own
+/// candidates from its own block's pool (gathered), picks one and casts its shadow ray; the
+/// same sums bit for bit.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub(super) fn connect_pooled(
+    scene: &SceneView,
+    p: &RenderParams,
+    rng: &LaneSampler,
+    bounce: u32,
+    alive: M,
+    pos: V3,
+    spawn: V3,
+    nf: V3,
+    albedo: V3,
+    beta: V3,
+    radiance: &mut V3,
+) {
+    let zero = F::splat(0.0);
+    let inf = F::splat(f32::INFINITY);
+    let [u0, u1, _, _] = rng.independent_4d(POOL_PICK_TAG + bounce);
+    let records = scene.light_pool.records;
+    let start = (u0 * F::splat(POOL_SLOTS as f32)).cast::<u32>().simd_min(U::splat(POOL_SLOTS - 1));
+    let live = alive;
+    let base = (rng.sample() / U::splat(POOL_SAMPLES) - U::splat(scene.light_pool.first_block)) * U::splat(POOL_SLOTS);
+    let enable = live.cast::<isize>();
+    // Field `k` of each lane's record in slot `start + j`, wrapping in its block.
+    let slot = |j: U| base + ((start + j) & U::splat(POOL_SLOTS - 1));
+    let field = |at: U, k: usize| {
+        let i = at.cast::<usize>() * Simd::splat(POOL_RECORD) + Simd::splat(k);
+        F::gather_select(records, enable, i, zero)
+    };
+    let mut c = [V3::ZERO; POOL_CANDIDATES];
+    let mut w = [zero; POOL_CANDIDATES];
+    let mut sum = zero;
+    for j in 0..POOL_CANDIDATES {
+        let at = slot(U::splat(j as u32));
+        let y = V3::new(field(at, 0), field(at, 1), field(at, 2));
+        let ny = V3::new(field(at, 3), field(at, 4), field(at, 5));
+        let d = y - pos;
+        let dist2 = d.dot(d);
+        let dir = d.scale(F::splat(1.0) / sqrt(dist2));
+        let cos_e = nf.dot(dir);
+        let cos_ye = ny.dot(dir);
+        let s6 = field(at, 6);
+        let cos_yl = cos_ye.simd_lt(zero).select(s6, -s6);
+        let ok = live & cos_e.simd_gt(zero) & cos_yl.simd_gt(zero) & dist2.simd_gt(zero);
+        if !ok.any() {
+            continue;
+        }
+        let geo = cos_e * cos_ye.abs() / dist2;
+        let q0 = cos_yl * F::splat(INV_PI);
+        let q2 = field(at, 7) * cos_yl / geo * F::splat(POOL_WEIGHT);
+        let w2 = power_heuristic3(q2, q0, field(at, 8));
+        let cj = (beta * albedo * V3::new(field(at, 9), field(at, 10), field(at, 11))).scale(geo * w2);
+        let wj = cj.x + cj.y + cj.z;
+        let keep = ok & wj.simd_gt(zero) & wj.simd_lt(inf);
+        c[j] = V3::select(keep, cj, V3::ZERO);
+        w[j] = keep.select(wj, zero);
+        sum = keep.select(sum + wj, sum);
+    }
+    let go = live & sum.simd_gt(zero) & sum.simd_lt(inf);
+    if !go.any() {
+        return;
+    }
+    // The pick, lane by lane as `connect_pooled` walks the candidates.
+    let mut pick = u1 * sum;
+    let mut y = U::splat(0);
+    let mut found = M::splat(false);
+    for (j, &wj) in w.iter().enumerate() {
+        let cand = !found & wj.simd_gt(zero);
+        y = cand.select(U::splat(j as u32), y);
+        let stop = cand & pick.simd_lt(wj);
+        found |= stop;
+        pick = (cand & !stop).select(pick - wj, pick);
+    }
+    let (mut cy, mut wy) = (V3::ZERO, F::splat(1.0));
+    for j in 0..POOL_CANDIDATES {
+        let m = y.simd_eq(U::splat(j as u32));
+        cy = V3::select(m, c[j], cy);
+        wy = m.select(w[j], wy);
+    }
+    let at = slot(y);
+    let q = V3::new(field(at, 0), field(at, 1), field(at, 2));
+    let ny = V3::new(field(at, 3), field(at, 4), field(at, 5));
+    let d = q - pos;
+    let nfy = V3::select(ny.dot(d.scale(F::splat(1.0) / sqrt(d.dot(d)))).simd_lt(zero), ny, -ny);
+    let target = offset_ray_origin(q, field(at, 12), nfy);
+    let open = unblocked(scene, p, spawn, target - spawn, go) & go;
+    let added = cy.scale(sum / (F::splat(POOL_CANDIDATES as f32) * wy));
     *radiance = V3::select(open, *radiance + added, *radiance);
 }

@@ -289,7 +289,8 @@ fn trace_paths(
         (v.has(FEATURE_EMITTERS) | v.has(FEATURE_ENVIRONMENT_MAP) | v.has(FEATURE_PUNCTUAL)) & (scene.light_count > 0);
     let many = v.has(FEATURE_MANY_EMITTERS);
     let bidir = crate::connection::connects(scene, p, v);
-    let lv = if bidir {
+    let kappa = crate::connection::connection_weight(p);
+    let lv = if bidir & (p.light_pool == 0) {
         super::connection::light_vertices(scene, p, many, &rng, live)
     } else {
         super::connection::LightVertex::none()
@@ -397,7 +398,7 @@ fn trace_paths(
                     let cos_l = n.dot(dir.normalize()).abs();
                     let light_pdf = F::from_array(pmf) * dist2 / (cos_l * F::from_array(area));
                     let w = if bidir {
-                        let q2 = F::from_array(pmf) / F::from_array(area) * prev_cos * prev_inv_pi_a;
+                        let q2 = F::from_array(pmf) / F::from_array(area) * prev_cos * prev_inv_pi_a * F::splat(kappa);
                         power_heuristic3(bsdf_pdf, light_pdf, q2)
                     } else {
                         power_heuristic(bsdf_pdf, light_pdf)
@@ -459,7 +460,24 @@ fn trace_paths(
             );
         }
         if bidir & (bounce < v.max_bounces) {
-            super::connection::connect(scene, p, &lv, alive, pos, spawn, nf, g.albedo, beta, &mut radiance);
+            if p.light_pool != 0 {
+                let c = (pos, spawn, nf, g.albedo, beta);
+                super::connection::connect_pooled(
+                    scene,
+                    p,
+                    &rng,
+                    bounce,
+                    alive,
+                    c.0,
+                    c.1,
+                    c.2,
+                    c.3,
+                    c.4,
+                    &mut radiance,
+                );
+            } else {
+                super::connection::connect(scene, p, &lv, alive, pos, spawn, nf, g.albedo, beta, &mut radiance);
+            }
         }
 
         // The Lambertian BSDF sample (`material::diffuse::sample`) on every lane; no lobe to
@@ -662,7 +680,7 @@ fn next_event(
     let shadow_dir = target - from;
     let unblocked = unblocked(scene, p, from, shadow_dir, valid);
     let weight = if bidir {
-        let q2 = pmf / area * nf.dot(wi).abs() * inv_pi_a;
+        let q2 = pmf / area * nf.dot(wi).abs() * inv_pi_a * F::splat(crate::connection::connection_weight(p));
         power_heuristic3(light_pdf, pdf_bsdf, q2)
     } else {
         power_heuristic(light_pdf, pdf_bsdf)

@@ -134,6 +134,12 @@ impl LaneSampler {
         (unit(b[0]), unit(b[1]))
     }
 
+    /// The lanes' sample indices.
+    #[inline(always)]
+    pub fn sample(&self) -> U {
+        self.sample
+    }
+
     /// Four uniforms of a hash keyed by `tag`, independent of every set.
     #[inline(always)]
     pub fn independent_4d(&self, tag: u32) -> [F; 4] {

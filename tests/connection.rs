@@ -121,8 +121,12 @@ fn the_share_is_kept_per_camera() {
 fn connections_run_where_asked_for_and_where_the_scene_allows() {
     let (c, s) = room(1.0);
     assert_eq!(s.connect, Connect::Auto, "auto by default: the scene file does not say");
-    // The lamp is behind a partition: most of what the camera sees is lit after a bounce.
-    let f = features::analyse(&c, &s);
+    // Drawn from the CPU's pool, the connections run wherever the scene allows them.
+    let pooled = features::analyse(&c, &s);
+    assert!(pooled.connect && pooled.seen_light_share.is_none(), "auto with the pool connects");
+    // Each sample with its own light subpath (the GPU's): the lamp is behind a partition, and
+    // most of what the camera sees is lit after a bounce.
+    let f = features::analyse(&c, &s.on_gpu());
     let share = f.seen_light_share.expect("auto decides");
     assert!(share < features::AUTO_CONNECT_BELOW, "{share}");
     assert!(f.connect, "on by default in this room, {share} of the first hits seeing the lamp");

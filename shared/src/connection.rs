@@ -191,8 +191,31 @@ impl LightVertex {
             return [0.0; POOL_RECORD];
         }
         let (y, n, w) = (self.pos, self.n, self.albedo * self.power);
-        let q1 = self.pa * self.dist2 / self.cos_l;
-        [y.x, y.y, y.z, n.x, n.y, n.z, dot(n, self.to_light), self.pa, q1, w.x, w.y, w.z, self.error.x, 0.0, 0.0, 0.0]
+        [
+            y.x,
+            y.y,
+            y.z,
+            n.x,
+            n.y,
+            n.z,
+            dot(n, self.to_light),
+            self.pa,
+            self.q1(),
+            w.x,
+            w.y,
+            w.z,
+            self.error.x,
+            0.0,
+            0.0,
+            0.0,
+        ]
+    }
+
+    /// The light subpath's density at its vertex: the light point's area density times the
+    /// area density of its cosine-sampled direction there.
+    #[inline(always)]
+    fn q1(&self) -> f32 {
+        self.pa * self.dist2 / self.cos_l
     }
 
     pub const NONE: LightVertex = LightVertex {
@@ -254,6 +277,69 @@ pub fn light_vertex(scene: &SceneView, p: &RenderParams, v: Variant, rng: &Sampl
     }
 }
 
+/// The segment joining an eye vertex to a light vertex, and the cosines the weights need.
+#[derive(Clone, Copy)]
+pub(crate) struct Link {
+    /// Both ends face each other and the light vertex faces its light point.
+    pub(crate) ok: bool,
+    /// The segment's geometry term, |cos| at both ends over the squared distance.
+    pub(crate) geo: f32,
+    /// The cosine at the light vertex toward its light point, on the eye vertex's side.
+    pub(crate) cos_yl: f32,
+    /// The eye vertex lies on the side the light vertex's stored normal points away from.
+    pub(crate) behind: bool,
+}
+
+impl Link {
+    /// The link from an eye vertex at `pos` (flat normal `nf` toward the ray's origin) to a
+    /// light vertex at `y`, stored normal `ny`, `ny_to_light` the cosine of `ny` to its light
+    /// point. Taken on the eye's side the cosine changes sign exactly, so a pooled record
+    /// keeps one cosine for both sides.
+    #[inline(always)]
+    pub fn new(pos: Vec3, nf: Vec3, y: Vec3, ny: Vec3, ny_to_light: f32) -> Link {
+        let d = y - pos;
+        let dist2 = dot(d, d);
+        let w = d * (1.0 / dist2.sqrt());
+        let cos_e = dot(nf, w);
+        let cos_ye = dot(ny, w);
+        let behind = cos_ye < 0.0;
+        let cos_yl = if behind { ny_to_light } else { -ny_to_light };
+        Link { ok: (cos_e > 0.0) & (cos_yl > 0.0) & (dist2 > 0.0), geo: cos_e * cos_ye.abs() / dist2, cos_yl, behind }
+    }
+
+    /// The light vertex's normal on the eye vertex's side.
+    #[inline(always)]
+    pub fn toward_eye(&self, ny: Vec3) -> Vec3 {
+        if self.behind {
+            ny
+        } else {
+            -ny
+        }
+    }
+
+    /// The power-heuristic weight of the connection among the three strategies that make its
+    /// path, over the path's last two segments: the light vertex's BSDF sample toward the eye
+    /// vertex with the light sample there (q0); the light subpath (`q1`); the connection (q2:
+    /// `pa`, the light point's area density, times cos_yl / pi over the eye vertex's area
+    /// density from the light vertex, geo / pi), counted `kappa` times (`connection_weight`).
+    #[inline(always)]
+    pub fn weight(&self, pa: f32, q1: f32, kappa: f32) -> f32 {
+        let q0 = self.cos_yl * INV_PI;
+        let q2 = pa * self.cos_yl / self.geo * kappa;
+        power_heuristic3(q2, q0, q1)
+    }
+}
+
+/// Whether a shadow ray from `spawn` reaches `target` (recorded as the path's shadow ray).
+#[inline(always)]
+fn shadow_open<R: Recorder>(scene: &SceneView, p: &RenderParams, spawn: Vec3, target: Vec3, rec: &mut R) -> bool {
+    let (shadow_dir, shadow_t) = (target - spawn, 1.0 - SHADOW_EPSILON);
+    rec.ray(RAY_SHADOW, spawn, shadow_dir, shadow_t);
+    let shadow = query_recorded(scene, p.traversal, spawn, shadow_dir, shadow_t, true, rec);
+    rec.traced(shadow.hit.triangle, shadow.hit.t, shadow.hit.nodes, shadow.hit.tests, shadow.restarts);
+    !shadow.hit.is_hit()
+}
+
 /// The connection strategy at an eye vertex (Lambertian, flat normal `nf` toward the ray's
 /// origin): its path through the light subpath's vertex, MIS-weighted against the path
 /// tracer's two ways of making the same path.
@@ -271,30 +357,12 @@ pub fn connect<R: Recorder>(
     radiance: &mut Vec3,
     rec: &mut R,
 ) {
-    let d = lv.pos - pos;
-    let dist2 = dot(d, d);
-    let w = d * (1.0 / dist2.sqrt());
-    let cos_e = dot(nf, w);
-    let cos_ye = dot(lv.n, w);
-    let nfy = if cos_ye < 0.0 { lv.n } else { -lv.n };
-    let cos_yl = dot(nfy, lv.to_light);
-    if lv.valid & (cos_e > 0.0) & (cos_yl > 0.0) & (dist2 > 0.0) {
-        // The connecting segment's geometry term. The densities of the three strategies over the
-        // path's last two segments: the light vertex's BSDF sample toward the eye vertex, with
-        // the light sample there (q0); the light subpath (q1); the connection (q2:
-        // pa * (cos_yl / pi) over the eye vertex's area density from y, geo / pi).
-        let geo = cos_e * cos_ye.abs() / dist2;
-        let q0 = cos_yl * INV_PI;
-        let q1 = lv.pa * lv.dist2 / lv.cos_l;
-        let q2 = lv.pa * cos_yl / geo;
-        let w2 = power_heuristic3(q2, q0, q1);
-        let target = offset_ray_origin(lv.pos, lv.error, nfy);
-        let (shadow_dir, shadow_t) = (target - spawn, 1.0 - SHADOW_EPSILON);
-        rec.ray(RAY_SHADOW, spawn, shadow_dir, shadow_t);
-        let shadow = query_recorded(scene, p.traversal, spawn, shadow_dir, shadow_t, true, rec);
-        rec.traced(shadow.hit.triangle, shadow.hit.t, shadow.hit.nodes, shadow.hit.tests, shadow.restarts);
-        if !shadow.hit.is_hit() {
-            *radiance += beta * albedo * lv.albedo * lv.power * (geo * w2);
+    let link = Link::new(pos, nf, lv.pos, lv.n, dot(lv.n, lv.to_light));
+    if lv.valid & link.ok {
+        let w2 = link.weight(lv.pa, lv.q1(), 1.0);
+        let target = offset_ray_origin(lv.pos, lv.error, link.toward_eye(lv.n));
+        if shadow_open(scene, p, spawn, target, rec) {
+            *radiance += beta * albedo * lv.albedo * lv.power * (link.geo * w2);
         }
     }
 }
@@ -323,26 +391,18 @@ pub fn connect_pooled<R: Recorder>(
     let start = pool_start(u[0]);
     let mut c = [Vec3::ZERO; POOL_CANDIDATES];
     let mut w = [0.0f32; POOL_CANDIDATES];
+    let mut behind = [false; POOL_CANDIDATES];
     let mut sum = 0.0f32;
     for j in 0..POOL_CANDIDATES {
         let r = pool_slot(records, start, j);
         let (y, ny) = (Vec3::new(r[0], r[1], r[2]), Vec3::new(r[3], r[4], r[5]));
-        let d = y - pos;
-        let dist2 = dot(d, d);
-        let dir = d * (1.0 / dist2.sqrt());
-        let cos_e = dot(nf, dir);
-        let cos_ye = dot(ny, dir);
-        // The cosine at the light vertex toward the light point, on the eye vertex's side.
-        let cos_yl = if cos_ye < 0.0 { r[6] } else { -r[6] };
-        if (cos_e > 0.0) & (cos_yl > 0.0) & (dist2 > 0.0) {
-            let geo = cos_e * cos_ye.abs() / dist2;
-            let q0 = cos_yl * INV_PI;
-            let q2 = r[7] * cos_yl / geo * POOL_WEIGHT;
-            let w2 = power_heuristic3(q2, q0, r[8]);
-            let cj = beta * albedo * Vec3::new(r[9], r[10], r[11]) * (geo * w2);
+        let link = Link::new(pos, nf, y, ny, r[6]);
+        if link.ok {
+            let w2 = link.weight(r[7], r[8], POOL_WEIGHT);
+            let cj = beta * albedo * Vec3::new(r[9], r[10], r[11]) * (link.geo * w2);
             let wj = cj.x + cj.y + cj.z;
             if (wj > 0.0) & (wj < f32::INFINITY) {
-                (c[j], w[j]) = (cj, wj);
+                (c[j], w[j], behind[j]) = (cj, wj, link.behind);
                 sum += wj;
             }
         }
@@ -363,14 +423,8 @@ pub fn connect_pooled<R: Recorder>(
     }
     let r = pool_slot(records, start, y);
     let (at, ny) = (Vec3::new(r[0], r[1], r[2]), Vec3::new(r[3], r[4], r[5]));
-    let d = at - pos;
-    let nfy = if dot(ny, d * (1.0 / dot(d, d).sqrt())) < 0.0 { ny } else { -ny };
-    let target = offset_ray_origin(at, Vec3::splat(r[12]), nfy);
-    let (shadow_dir, shadow_t) = (target - spawn, 1.0 - SHADOW_EPSILON);
-    rec.ray(RAY_SHADOW, spawn, shadow_dir, shadow_t);
-    let shadow = query_recorded(scene, p.traversal, spawn, shadow_dir, shadow_t, true, rec);
-    rec.traced(shadow.hit.triangle, shadow.hit.t, shadow.hit.nodes, shadow.hit.tests, shadow.restarts);
-    if !shadow.hit.is_hit() {
+    let target = offset_ray_origin(at, Vec3::splat(r[12]), if behind[y] { ny } else { -ny });
+    if shadow_open(scene, p, spawn, target, rec) {
         *radiance += c[y] * (sum / (POOL_CANDIDATES as f32 * w[y]));
     }
 }

@@ -343,12 +343,20 @@ pub fn run(r: RenderArgs) -> Result<ExitCode> {
             dispatch: s.dispatch,
             aov: s.aov,
             features: {
+                // The CPU draws from the pool only where no GPU renders (`render::multi`); a GPU
+                // connects as `RenderSettings::on_gpu` says.
+                let cpu_alone = match devices {
+                    Devices::One(d) => matches!(d, Device::Cpu),
+                    Devices::Many(_) => run.shares.as_ref().is_some_and(|v| v.iter().all(|u| !u.gpu)),
+                };
+                let s = if cpu_alone { s } else { s.on_gpu() };
                 let mut f = features::analyse(c, &s);
                 // The CPU compiles one variant per set of the non-material bits and material mode.
                 if matches!(devices, Devices::One(Device::Cpu)) && s.specialize {
                     f.variant_bits = crate::render::cpu::cpu_variant_bits(f.bits);
                 }
                 f.lanes = matches!(devices, Devices::One(Device::Cpu)) && crate::render::cpu::runs_lanes(&s);
+                f.light_pool = f.connect && s.light_pool;
                 f
             },
             mean_nodes: cost_mean(0),

@@ -52,6 +52,9 @@ pub struct Features {
     pub variant_bits: u32,
     /// Whether the CPU ran it sixteen samples at a time (`shared::lanes`).
     pub lanes: bool,
+    /// Whether the connections drew their light subpaths from the CPU's pool
+    /// (`render::light_pool`; the GPU, and the CPU beside one, trace each sample's own).
+    pub light_pool: bool,
 }
 
 /// Each bit's name, as `render --json` and the tests print them.
@@ -97,12 +100,14 @@ pub fn variant_bits(c: &Compiled, s: &RenderSettings) -> u32 {
     }
 }
 
-/// `Connect::Auto` connects light subpaths where fewer of the camera's first hits than this
+/// `Connect::Auto`, where each sample traces its own light subpath (the GPU, and the CPU with
+/// `RenderSettings::light_pool` off), connects where fewer of the camera's first hits than this
 /// see the point they sample on a light (`seen_light_share`). In the time-against-error
-/// benchmark the connections paid well where the light mostly arrives after a bounce (a room
+/// benchmark those connections paid well where the light mostly arrives after a bounce (a room
 /// lit around a partition, Sponza's arcades) and cost about as much as they saved where most
 /// of what the camera sees is lit directly (the Cornell boxes); BENCHMARKS.md gives each
-/// scene's share and times.
+/// scene's share and times. Drawn from the CPU's pool, the connections paid on every scene of
+/// the benchmark, so `auto` connects wherever the scene allows it.
 pub const AUTO_CONNECT_BELOW: f64 = 0.5;
 
 /// Camera rays through a grid of pixel centres per axis for `seen_light_share`.
@@ -222,15 +227,16 @@ pub fn analyse(c: &Compiled, s: &RenderSettings) -> Features {
         }
     }
     // A setting, not a fact of the scene: on where asked for and the scene's other bits allow
-    // it, for the radiance image with a bounce to connect; by default (`Connect::Auto`) only
-    // where the camera's first hits mostly do not see the light.
+    // it, for the radiance image with a bounce to connect; by default (`Connect::Auto`) wherever
+    // the connections draw from the CPU's pool, and otherwise only where the camera's first
+    // hits mostly do not see the light.
     let allowed = s.aov == Aov::Radiance && s.max_bounces > 0 && connection_applies(bits);
-    let seen_light = (allowed && s.connect == Connect::Auto).then(|| seen_light_share(c, s));
+    let seen_light = (allowed && s.connect == Connect::Auto && !s.light_pool).then(|| seen_light_share(c, s));
     let connect = allowed
         && match s.connect {
             Connect::On => true,
             Connect::Off => false,
-            Connect::Auto => seen_light.is_some_and(|share| share < AUTO_CONNECT_BELOW),
+            Connect::Auto => s.light_pool || seen_light.is_some_and(|share| share < AUTO_CONNECT_BELOW),
         };
     if connect {
         bits |= FEATURE_CONNECT;
@@ -267,6 +273,7 @@ pub fn analyse(c: &Compiled, s: &RenderSettings) -> Features {
         variant: if s.specialize { "specialised" } else { "generic" },
         variant_bits: if s.specialize { bits } else { FEATURES_ALL },
         lanes: false,
+        light_pool: false,
     }
 }
 
@@ -294,7 +301,14 @@ mod tests {
         // wall faces it edge-on and is not counted).
         let s = inside(DVec3::new(0.0, 0.0, 0.5), DVec3::new(0.0, 0.0, -1.0));
         assert_eq!(seen_light_share(&c, &s), 1.0);
-        assert!(!analyse(&c, &s).connect);
+        // Drawn from the CPU's pool, the connections run wherever the scene allows them; each
+        // sample with its own light subpath (the GPU's), they do not run here.
+        let pooled = analyse(&c, &s);
+        assert!(pooled.connect && pooled.bits & FEATURE_CONNECT != 0 && pooled.seen_light_share.is_none());
+        let own = analyse(&c, &s.on_gpu());
+        assert!(!own.connect && own.bits & FEATURE_CONNECT == 0);
+        assert_eq!(own.seen_light_share, Some(1.0));
+        let s = s.on_gpu();
         // `on` runs them all the same.
         let on = analyse(&c, &RenderSettings { connect: Connect::On, ..s });
         assert!(on.connect && on.bits & FEATURE_CONNECT != 0);
@@ -314,9 +328,11 @@ mod tests {
         assert_eq!((off.connect, off.seen_light_share), (false, None));
         let on = analyse(&c, &RenderSettings { connect: Connect::On, ..settings(3, Vec3::ZERO) });
         assert_eq!((on.bits, on.connect, on.seen_light_share), (off.bits | FEATURE_CONNECT, true, None));
-        let share = f.seen_light_share.unwrap();
-        assert_eq!(f.connect, share < AUTO_CONNECT_BELOW, "{share}");
-        assert_eq!(f.bits, if f.connect { on.bits } else { off.bits });
+        assert_eq!((f.bits, f.connect, f.seen_light_share), (on.bits, true, None), "auto, the CPU's pool");
+        let own = analyse(&c, &settings(3, Vec3::ZERO).on_gpu());
+        let share = own.seen_light_share.unwrap();
+        assert_eq!(own.connect, share < AUTO_CONNECT_BELOW, "{share}");
+        assert_eq!(own.bits, if own.connect { on.bits } else { off.bits });
         assert_eq!(f.emitters, 12);
         // Six faces of area 4, emission 1 (luminance 1).
         assert!((f.emitter_power - 24.0).abs() < 1e-4, "{}", f.emitter_power);

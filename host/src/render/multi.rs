@@ -68,6 +68,9 @@ pub struct Share {
     pub samples_per_s: f64,
     #[serde(skip)]
     seconds: f64,
+    /// Whether it is a GPU.
+    #[serde(skip)]
+    pub gpu: bool,
 }
 
 /// The result: the fold of every block rendered, the primary hits (from the device that
@@ -121,7 +124,7 @@ pub fn render(
     let gpu_count = gpus.iter().flatten().count();
     // With a GPU beside it, the CPU traces each sample's own light subpath as the GPU does, so
     // that the image is the one either device renders alone with `light_pool` off.
-    let s = &RenderSettings { light_pool: s.light_pool && gpu_count == 0, ..*s };
+    let s = &if gpu_count == 0 { *s } else { s.on_gpu() };
     let cpu_threads = rayon::current_num_threads().saturating_sub(gpu_count).max(1);
     let pool = rayon::ThreadPoolBuilder::new().num_threads(cpu_threads).build()?;
     let pixels = s.width as usize * s.height as usize;
@@ -136,6 +139,7 @@ pub fn render(
             share: 0.0,
             samples_per_s: 0.0,
             seconds: 0.0,
+            gpu: g.is_some(),
         })
         .collect();
     let (first, end) = (block_of(a), block_of(b - 1) + 1);

@@ -93,6 +93,41 @@ pub(super) fn light_vertices(
     }
 }
 
+/// `crate::connection::Link` for sixteen segments.
+struct Link {
+    ok: M,
+    geo: F,
+    cos_yl: F,
+    behind: M,
+}
+
+impl Link {
+    #[inline(always)]
+    fn new(pos: V3, nf: V3, y: V3, ny: V3, ny_to_light: F) -> Link {
+        let zero = F::splat(0.0);
+        let d = y - pos;
+        let dist2 = d.dot(d);
+        let w = d.scale(F::splat(1.0) / sqrt(dist2));
+        let cos_e = nf.dot(w);
+        let cos_ye = ny.dot(w);
+        let behind = cos_ye.simd_lt(zero);
+        let cos_yl = behind.select(ny_to_light, -ny_to_light);
+        Link {
+            ok: cos_e.simd_gt(zero) & cos_yl.simd_gt(zero) & dist2.simd_gt(zero),
+            geo: cos_e * cos_ye.abs() / dist2,
+            cos_yl,
+            behind,
+        }
+    }
+
+    #[inline(always)]
+    fn weight(&self, pa: F, q1: F, kappa: F) -> F {
+        let q0 = self.cos_yl * F::splat(INV_PI);
+        let q2 = pa * self.cos_yl / self.geo * kappa;
+        power_heuristic3(q2, q0, q1)
+    }
+}
+
 /// The connection strategy at an eye vertex (Lambertian, flat normal `nf` toward the ray's
 /// origin): its path through the light subpath's vertex, MIS-weighted against the path
 /// tracer's two ways of making the same path.
@@ -110,26 +145,15 @@ pub(super) fn connect(
     beta: V3,
     radiance: &mut V3,
 ) {
-    let zero = F::splat(0.0);
-    let d = lv.pos - pos;
-    let dist2 = d.dot(d);
-    let w = d.scale(F::splat(1.0) / sqrt(dist2));
-    let cos_e = nf.dot(w);
-    let cos_ye = lv.n.dot(w);
-    let nfy = V3::select(cos_ye.simd_lt(zero), lv.n, -lv.n);
-    let cos_yl = nfy.dot(lv.to_light);
-    let valid = alive & lv.valid & cos_e.simd_gt(zero) & cos_yl.simd_gt(zero) & dist2.simd_gt(zero);
+    let link = Link::new(pos, nf, lv.pos, lv.n, lv.n.dot(lv.to_light));
+    let valid = alive & lv.valid & link.ok;
     if !valid.any() {
         return;
     }
-    let geo = cos_e * cos_ye.abs() / dist2;
-    let q0 = cos_yl * F::splat(INV_PI);
-    let q1 = lv.pa * lv.dist2 / lv.cos_l;
-    let q2 = lv.pa * cos_yl / geo;
-    let w2 = power_heuristic3(q2, q0, q1);
-    let target = offset_ray_origin(lv.pos, lv.error, nfy);
+    let w2 = link.weight(lv.pa, lv.pa * lv.dist2 / lv.cos_l, F::splat(1.0));
+    let target = offset_ray_origin(lv.pos, lv.error, V3::select(link.behind, lv.n, -lv.n));
     let open = unblocked(scene, p, spawn, target - spawn, valid);
-    let added = (beta * albedo * lv.albedo * lv.power).scale(geo * w2);
+    let added = (beta * albedo * lv.albedo * lv.power).scale(link.geo * w2);
     *radiance = V3::select(open, *radiance + added, *radiance);
 }
 
@@ -167,31 +191,24 @@ pub(super) fn connect_pooled(
     };
     let mut c = [V3::ZERO; POOL_CANDIDATES];
     let mut w = [zero; POOL_CANDIDATES];
+    let mut behind = [M::splat(false); POOL_CANDIDATES];
     let mut sum = zero;
     for j in 0..POOL_CANDIDATES {
         let at = slot(U::splat(j as u32));
         let y = V3::new(field(at, 0), field(at, 1), field(at, 2));
         let ny = V3::new(field(at, 3), field(at, 4), field(at, 5));
-        let d = y - pos;
-        let dist2 = d.dot(d);
-        let dir = d.scale(F::splat(1.0) / sqrt(dist2));
-        let cos_e = nf.dot(dir);
-        let cos_ye = ny.dot(dir);
-        let s6 = field(at, 6);
-        let cos_yl = cos_ye.simd_lt(zero).select(s6, -s6);
-        let ok = live & cos_e.simd_gt(zero) & cos_yl.simd_gt(zero) & dist2.simd_gt(zero);
+        let link = Link::new(pos, nf, y, ny, field(at, 6));
+        let ok = live & link.ok;
         if !ok.any() {
             continue;
         }
-        let geo = cos_e * cos_ye.abs() / dist2;
-        let q0 = cos_yl * F::splat(INV_PI);
-        let q2 = field(at, 7) * cos_yl / geo * F::splat(POOL_WEIGHT);
-        let w2 = power_heuristic3(q2, q0, field(at, 8));
-        let cj = (beta * albedo * V3::new(field(at, 9), field(at, 10), field(at, 11))).scale(geo * w2);
+        let w2 = link.weight(field(at, 7), field(at, 8), F::splat(POOL_WEIGHT));
+        let cj = (beta * albedo * V3::new(field(at, 9), field(at, 10), field(at, 11))).scale(link.geo * w2);
         let wj = cj.x + cj.y + cj.z;
         let keep = ok & wj.simd_gt(zero) & wj.simd_lt(inf);
         c[j] = V3::select(keep, cj, V3::ZERO);
         w[j] = keep.select(wj, zero);
+        behind[j] = keep & link.behind;
         sum = keep.select(sum + wj, sum);
     }
     let go = live & sum.simd_gt(zero) & sum.simd_lt(inf);
@@ -209,18 +226,17 @@ pub(super) fn connect_pooled(
         found |= stop;
         pick = (cand & !stop).select(pick - wj, pick);
     }
-    let (mut cy, mut wy) = (V3::ZERO, F::splat(1.0));
+    let (mut cy, mut wy, mut by) = (V3::ZERO, F::splat(1.0), M::splat(false));
     for j in 0..POOL_CANDIDATES {
         let m = y.simd_eq(U::splat(j as u32));
         cy = V3::select(m, c[j], cy);
         wy = m.select(w[j], wy);
+        by = m.select(behind[j], by);
     }
     let at = slot(y);
     let q = V3::new(field(at, 0), field(at, 1), field(at, 2));
     let ny = V3::new(field(at, 3), field(at, 4), field(at, 5));
-    let d = q - pos;
-    let nfy = V3::select(ny.dot(d.scale(F::splat(1.0) / sqrt(d.dot(d)))).simd_lt(zero), ny, -ny);
-    let target = offset_ray_origin(q, field(at, 12), nfy);
+    let target = offset_ray_origin(q, field(at, 12), V3::select(by, ny, -ny));
     let open = unblocked(scene, p, spawn, target - spawn, go) & go;
     let added = cy.scale(sum / (F::splat(POOL_CANDIDATES as f32) * wy));
     *radiance = V3::select(open, *radiance + added, *radiance);

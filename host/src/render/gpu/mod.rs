@@ -398,7 +398,7 @@ impl Gpu {
 
     pub fn render(&self, c: &Compiled, s: &RenderSettings, progress: Progress) -> Result<Rendered> {
         s.check()?;
-        let s = &RenderSettings { traversal: s.traversal.for_adapter(self.is_cpu())?, ..*s };
+        let s = &RenderSettings { traversal: s.traversal.for_adapter(self.is_cpu())?, ..s.on_gpu() };
         if let Some(a) = s.adaptive {
             let b = self.allocate(c, s)?;
             let mut params = c.params(s, 0, 0)?;
@@ -461,7 +461,7 @@ impl Gpu {
         if s.adaptive.is_some() {
             bail!("a progressive render adds the same samples to every pixel: adaptive sampling does not apply");
         }
-        let s = RenderSettings { traversal: s.traversal.for_adapter(self.is_cpu())?, ..*s };
+        let s = RenderSettings { traversal: s.traversal.for_adapter(self.is_cpu())?, ..s.on_gpu() };
         let buffers = self.allocate(c, &s)?;
         let pixels = buffers.pixels;
         // Work per invocation and dispatch, bounded on CPU adapters (see `CPU_ADAPTER_*`).
@@ -573,7 +573,11 @@ struct ImageBuffers {
 /// generic code) when specialisation is off.
 pub fn variant(c: &Compiled, s: &RenderSettings) -> Variant {
     if s.specialize {
-        Variant { features: super::features::variant_bits(c, s), max_bounces: s.max_bounces, rr_start: s.rr_start }
+        Variant {
+            features: super::features::variant_bits(c, &s.on_gpu()),
+            max_bounces: s.max_bounces,
+            rr_start: s.rr_start,
+        }
     } else {
         Variant::GENERIC_SPEC
     }

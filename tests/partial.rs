@@ -41,6 +41,13 @@ fn repo(rel: &str) -> String {
 /// The CPU's connections each from their sample's own light subpath, the GPU's estimator.
 const OWN_LIGHT: &[&str] = &["--light-pool", "off"];
 
+/// The CPU's whole render at `spp` with the GPU's estimator (`OWN_LIGHT`): image and variance,
+/// what merged parts from a GPU must equal.
+fn own_light_whole(spp: u32, name: &str) -> (Vec<u8>, Vec<u8>) {
+    let (image, variance, _) = single_with(spp, "cpu", name, OWN_LIGHT);
+    (image, variance)
+}
+
 fn tmp(name: &str) -> String {
     let dir = std::env::temp_dir().join(format!("kdtrace-partial-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -126,8 +133,7 @@ fn random_splits_merge_to_the_single_render_bit_for_bit() {
 #[test]
 fn a_lavapipe_part_merges_with_cpu_parts_bit_for_bit() {
     // The CPU's parts trace each sample's own light subpath, as the GPU does.
-    let (image, variance, _) = single_with(40, "cpu", "single-40", OWN_LIGHT);
-    let want = (image, variance);
+    let want = own_light_whole(40, "single-40");
     let files = [tmp("l0.kdp"), tmp("l1.kdp"), tmp("l2.kdp")];
     part(&scene(), 0, 16, "cpu", &files[0], OWN_LIGHT);
     part(&scene(), 16, 24, "gpu", &files[1], &["--adapter", "llvmpipe"]);
@@ -200,8 +206,7 @@ fn every_device_at_once_renders_the_cpus_image_bit_for_bit() {
     let devices = cpu_and_lavapipe();
     // The CPU beside a GPU traces each sample's own light subpath, as the GPU does: the image
     // is the CPU's alone with `--light-pool off`.
-    let (image, variance, _) = single_with(64, "cpu", "single-cpu-64", OWN_LIGHT);
-    let want = (image, variance);
+    let want = own_light_whole(64, "single-cpu-64");
     let (image, variance, o) = single_with(64, &devices, "all", &["--json"]);
     assert!(image == want.0, "--device {devices}: the image differs from the CPU's");
     assert!(variance == want.1, "--device {devices}: the variance differs from the CPU's");

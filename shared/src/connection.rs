@@ -13,7 +13,7 @@
 //!
 //! On the CPU the light subpaths are not the sample's own but drawn from a pool that all pixels
 //! share (`LightPool`): the host traces `POOL_SLOTS` of them for every block of `POOL_SAMPLES`
-//! samples, and each eye vertex weighs `POOL_CANDIDATES` consecutive ones from a random slot by
+//! samples, and each eye vertex weighs `POOL_CANDIDATES` of them from a random window by
 //! their unshadowed contributions, picks one in proportion and traces one shadow ray to it
 //! (resampled importance sampling: Talbot et al. 2005; the pool of light vertices: Davidovič et
 //! al. 2014, "Progressive light transport simulation on the GPU", the light vertex cache). The
@@ -21,6 +21,13 @@
 //! vertex in a gallery now connects to the floor points that light it most. As the strategy is
 //! better than one connection, its density in the three strategies' weights is counted
 //! `POOL_WEIGHT` times (any factor keeps the weights summing to one).
+//!
+//! The pool is stored field by field (`POOL_FIELDS` rows of `POOL_SLOTS` floats a block), and the
+//! `POOL_STRIDE` samples of a pixel that the lane integrator runs together share one window of
+//! `POOL_STRIDE * POOL_CANDIDATES` slots (`pool_window`, hashed from the pixel, their group and
+//! the bounce): sample `s`'s candidate `j` is slot `window + POOL_STRIDE * j + s % POOL_STRIDE`.
+//! The samples' candidates are distinct, and sixteen lanes read a field of their candidates `j`
+//! from consecutive floats rather than by a gather.
 //!
 //! It serves scenes where `features::connection_applies`: Lambertian vertices at both ends (the
 //! BSDF is albedo / pi), flat normals, emitting triangles. `RenderParams::connect` switches it on
@@ -43,9 +50,14 @@ use spirv_std::num_traits::Float;
 
 /// The hash key of the light subpath's uniforms (`Sampler::independent_4d`).
 pub const CONNECT_TAG: u32 = 0xB1D1_0001;
-/// The hash key (plus the bounce) of a pooled connection's two uniforms: the first slot and the
-/// pick among the candidates.
+/// The hash key (plus the bounce) of a pooled connection's pick among its candidates.
 pub const POOL_PICK_TAG: u32 = 0xB1D1_0100;
+/// The hash key (plus the bounce) of the window a group of `POOL_STRIDE` samples draws its
+/// candidates from (`Sampler::group_bits`).
+pub const POOL_WINDOW_TAG: u32 = 0xB1D1_0200;
+/// Samples of a pixel that share a window of candidates, each taking every `POOL_STRIDE`th slot
+/// of it: the lane integrator's sixteen (`lanes::LANES`).
+pub const POOL_STRIDE: u32 = 16;
 /// Samples of a pixel that draw from one pool of light subpaths: sample `s` from block
 /// `s / POOL_SAMPLES`'s.
 pub const POOL_SAMPLES: u32 = 8;
@@ -55,16 +67,18 @@ pub const POOL_SLOTS: u32 = 4096;
 pub const POOL_CANDIDATES: usize = 32;
 /// The factor on the pooled connection's density in the multiple-importance weights.
 pub const POOL_WEIGHT: f32 = 16.0;
-/// Floats of a pooled light vertex (`LightVertex::record`): position, stored normal, the normal's
-/// cosine to the light point, the light point's area density, the light subpath's density q1,
-/// albedo times power, rounding error; three unused.
-pub const POOL_RECORD: usize = 16;
+/// Fields of a pooled light vertex (`LightVertex::record`): position, stored normal, the normal's
+/// cosine to the light point, the two terms of its weights (`PooledLink`), albedo times power,
+/// rounding error.
+pub const POOL_FIELDS: usize = 13;
+/// Floats of a block's pool: `POOL_FIELDS` rows of `POOL_SLOTS`.
+pub const POOL_BLOCK: usize = POOL_FIELDS * POOL_SLOTS as usize;
 /// Seeds the pool's hash apart from the pixels' samplers.
 #[cfg(not(target_arch = "spirv"))]
 const POOL_SEED: u32 = 0x7f4a_7c15;
 
-/// The light subpaths of blocks `first_block ..` (`POOL_SLOTS` records of `POOL_RECORD` floats
-/// each per block), shared by every pixel's samples in those blocks.
+/// The light subpaths of blocks `first_block ..` (`POOL_BLOCK` floats a block, field `f` of slot
+/// `t` at `f * POOL_SLOTS + t`), shared by every pixel's samples in those blocks.
 #[cfg(not(target_arch = "spirv"))]
 #[derive(Clone, Copy, Default)]
 pub struct LightPool<'a> {
@@ -77,9 +91,8 @@ impl<'a> LightPool<'a> {
     /// The records of sample `sample`'s block.
     #[inline(always)]
     pub fn of_sample(&self, sample: u32) -> &'a [f32] {
-        let per = POOL_SLOTS as usize * POOL_RECORD;
-        let at = (sample / POOL_SAMPLES - self.first_block) as usize * per;
-        &self.records[at..at + per]
+        let at = (sample / POOL_SAMPLES - self.first_block) as usize * POOL_BLOCK;
+        &self.records[at..at + POOL_BLOCK]
     }
 }
 
@@ -98,7 +111,7 @@ pub fn connection_weight(p: &RenderParams) -> f32 {
 /// uniforms hashed from the block, the slot and the seed. `v` only picks the light as the
 /// render's variant does.
 #[cfg(not(target_arch = "spirv"))]
-pub fn pool_record(scene: &SceneView, p: &RenderParams, v: Variant, block: u32, slot: u32) -> [f32; POOL_RECORD] {
+pub fn pool_record(scene: &SceneView, p: &RenderParams, v: Variant, block: u32, slot: u32) -> [f32; POOL_FIELDS] {
     let rng = Sampler::new(crate::rng::SAMPLER_INDEPENDENT, slot, block, p.seed ^ POOL_SEED);
     light_vertex(scene, p, v, &rng).record()
 }
@@ -183,14 +196,16 @@ pub struct LightVertex {
 }
 
 impl LightVertex {
-    /// The vertex as a pool record (`POOL_RECORD`); zeros, which no eye vertex picks, where it
+    /// The vertex as a pool record (`POOL_FIELDS`); zeros, which no eye vertex picks, where it
     /// is not valid.
     #[cfg(not(target_arch = "spirv"))]
-    pub fn record(&self) -> [f32; POOL_RECORD] {
+    pub fn record(&self) -> [f32; POOL_FIELDS] {
         if !self.valid {
-            return [0.0; POOL_RECORD];
+            return [0.0; POOL_FIELDS];
         }
         let (y, n, w) = (self.pos, self.n, self.albedo * self.power);
+        let (cos, q1) = (dot(n, self.to_light), self.q1());
+        let q0 = cos * INV_PI;
         [
             y.x,
             y.y,
@@ -198,16 +213,13 @@ impl LightVertex {
             n.x,
             n.y,
             n.z,
-            dot(n, self.to_light),
-            self.pa,
-            self.q1(),
+            cos,
+            1.0 / (POOL_WEIGHT * self.pa * cos.abs()),
+            q0 * q0 + q1 * q1,
             w.x,
             w.y,
             w.z,
             self.error.x,
-            0.0,
-            0.0,
-            0.0,
         ]
     }
 
@@ -330,6 +342,38 @@ impl Link {
     }
 }
 
+/// A pooled candidate's segment (`Link` for a record) and its weight, in two divisions and no
+/// square root: with κ `POOL_WEIGHT`, P = κ pa cos_yl and q2 = P / geo, the power heuristic
+/// q2² / (q2² + q0² + q1²) is 1 / (1 + (q0² + q1²) (geo / P)²), and the record holds 1 / P
+/// (`inv_p`) and q0² + q1² (`q01`); cos_yl enters only as |`ny_to_light`| where the link is
+/// open. The products stay within the squared distance's range at any scale.
+#[cfg(not(target_arch = "spirv"))]
+#[derive(Clone, Copy)]
+pub(crate) struct PooledLink {
+    pub(crate) ok: bool,
+    /// The geometry term times the MIS weight.
+    pub(crate) term: f32,
+    pub(crate) behind: bool,
+}
+
+#[cfg(not(target_arch = "spirv"))]
+impl PooledLink {
+    #[inline(always)]
+    pub fn new(pos: Vec3, nf: Vec3, y: Vec3, ny: Vec3, ny_to_light: f32, inv_p: f32, q01: f32) -> PooledLink {
+        let d = y - pos;
+        let dist2 = dot(d, d);
+        // Both cosines times the distance.
+        let (cos_e, cos_ye) = (dot(nf, d), dot(ny, d));
+        let behind = cos_ye < 0.0;
+        let cos_yl = if behind { ny_to_light } else { -ny_to_light };
+        let inv = 1.0 / dist2;
+        let geo = cos_e * inv * (cos_ye.abs() * inv);
+        let r = geo * inv_p;
+        let term = geo / (1.0 + q01 * (r * r));
+        PooledLink { ok: (cos_e > 0.0) & (cos_yl > 0.0) & (dist2 > 0.0), term, behind }
+    }
+}
+
 /// Whether a shadow ray from `spawn` reaches `target` (recorded as the path's shadow ray).
 #[inline(always)]
 fn shadow_open<R: Recorder>(scene: &SceneView, p: &RenderParams, spawn: Vec3, target: Vec3, rec: &mut R) -> bool {
@@ -368,10 +412,10 @@ pub fn connect<R: Recorder>(
 }
 
 /// The pooled connection at an eye vertex (Lambertian, flat normal `nf` toward the ray's
-/// origin): weighs the `POOL_CANDIDATES` records of `records` from the slot `u[0]` picks by
-/// their unshadowed contributions (MIS-weighted as `connect`'s), picks one in proportion by
-/// `u[1]` and adds its contribution times the mean weight over the picked one's, if a shadow
-/// ray reaches it.
+/// origin): weighs the `POOL_CANDIDATES` records of `records` (a block's) that the sample at
+/// `lane` of its group takes from `window` (`pool_slot`) by their unshadowed contributions
+/// (MIS-weighted as `connect`'s), picks one in proportion by `u` and adds its contribution times
+/// the mean weight over the picked one's, if a shadow ray reaches it.
 #[cfg(not(target_arch = "spirv"))]
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
@@ -379,7 +423,9 @@ pub fn connect_pooled<R: Recorder>(
     scene: &SceneView,
     p: &RenderParams,
     records: &[f32],
-    u: [f32; 2],
+    window: u32,
+    lane: u32,
+    u: f32,
     pos: Vec3,
     spawn: Vec3,
     nf: Vec3,
@@ -388,18 +434,17 @@ pub fn connect_pooled<R: Recorder>(
     radiance: &mut Vec3,
     rec: &mut R,
 ) {
-    let start = pool_start(u[0]);
+    let field = |slot: usize, f: usize| records[f * POOL_SLOTS as usize + slot];
     let mut c = [Vec3::ZERO; POOL_CANDIDATES];
     let mut w = [0.0f32; POOL_CANDIDATES];
     let mut behind = [false; POOL_CANDIDATES];
     let mut sum = 0.0f32;
     for j in 0..POOL_CANDIDATES {
-        let r = pool_slot(records, start, j);
-        let (y, ny) = (Vec3::new(r[0], r[1], r[2]), Vec3::new(r[3], r[4], r[5]));
-        let link = Link::new(pos, nf, y, ny, r[6]);
+        let r = |f: usize| field(pool_slot(window, lane, j), f);
+        let (y, ny) = (Vec3::new(r(0), r(1), r(2)), Vec3::new(r(3), r(4), r(5)));
+        let link = PooledLink::new(pos, nf, y, ny, r(6), r(7), r(8));
         if link.ok {
-            let w2 = link.weight(r[7], r[8], POOL_WEIGHT);
-            let cj = beta * albedo * Vec3::new(r[9], r[10], r[11]) * (link.geo * w2);
+            let cj = beta * albedo * Vec3::new(r(9), r(10), r(11)) * link.term;
             let wj = cj.x + cj.y + cj.z;
             if (wj > 0.0) & (wj < f32::INFINITY) {
                 (c[j], w[j], behind[j]) = (cj, wj, link.behind);
@@ -410,7 +455,7 @@ pub fn connect_pooled<R: Recorder>(
     if !((sum > 0.0) & (sum < f32::INFINITY)) {
         return;
     }
-    let mut pick = u[1] * sum;
+    let mut pick = u * sum;
     let mut y = 0;
     for (j, &wj) in w.iter().enumerate() {
         if wj > 0.0 {
@@ -421,25 +466,67 @@ pub fn connect_pooled<R: Recorder>(
             pick -= wj;
         }
     }
-    let r = pool_slot(records, start, y);
-    let (at, ny) = (Vec3::new(r[0], r[1], r[2]), Vec3::new(r[3], r[4], r[5]));
-    let target = offset_ray_origin(at, Vec3::splat(r[12]), if behind[y] { ny } else { -ny });
+    let r = |f: usize| field(pool_slot(window, lane, y), f);
+    let (at, ny) = (Vec3::new(r(0), r(1), r(2)), Vec3::new(r(3), r(4), r(5)));
+    let target = offset_ray_origin(at, Vec3::splat(r(12)), if behind[y] { ny } else { -ny });
     if shadow_open(scene, p, spawn, target, rec) {
         *radiance += c[y] * (sum / (POOL_CANDIDATES as f32 * w[y]));
     }
 }
 
-/// The first candidate's slot from a uniform.
-#[cfg(not(target_arch = "spirv"))]
+/// The first slot of a window of candidates from 32 hashed bits: a multiple of `POOL_STRIDE`.
 #[inline(always)]
-pub fn pool_start(u: f32) -> u32 {
-    ((u * POOL_SLOTS as f32) as u32).min(POOL_SLOTS - 1)
+pub fn pool_window(bits: u32) -> u32 {
+    (bits >> (32 - (POOL_SLOTS / POOL_STRIDE).trailing_zeros())) * POOL_STRIDE
 }
 
-/// Candidate `j`'s record: slot `start + j`, wrapping.
-#[cfg(not(target_arch = "spirv"))]
+/// Candidate `j`'s slot for the sample at `lane` of its group (`sample % POOL_STRIDE`), in the
+/// window from `window`, wrapping in the block.
 #[inline(always)]
-pub fn pool_slot(records: &[f32], start: u32, j: usize) -> &[f32] {
-    let at = ((start + j as u32) & (POOL_SLOTS - 1)) as usize * POOL_RECORD;
-    &records[at..at + POOL_RECORD]
+pub fn pool_slot(window: u32, lane: u32, j: usize) -> usize {
+    (((window + POOL_STRIDE * j as u32) & (POOL_SLOTS - 1)) + lane) as usize
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rng::{pcg4d, u32_to_unit_f32};
+
+    /// `PooledLink` is `Link` with its weight at κ = `POOL_WEIGHT` from a record's terms, and
+    /// stays so from the smallest scene scale to the largest (positions times `scale`, the light
+    /// point's area density over its square; the term is then over `scale²`).
+    #[test]
+    fn pooled_link_is_link_and_its_weight_at_every_scale() {
+        let mut k = 0u32;
+        let mut next = || {
+            k += 1;
+            pcg4d(k, 7, 11, 13).map(|h| u32_to_unit_f32(h) * 2.0 - 1.0)
+        };
+        let (mut open, mut compared) = (0, 0);
+        for _ in 0..4000 {
+            let [a, b, c, d] = next();
+            let [e, f, g, h] = next();
+            let [i, j, l, m] = next();
+            let (pos, y) = (Vec3::new(a, b, c), Vec3::new(d, e, f) * 3.0);
+            let (nf, ny) = (Vec3::new(g, h, i).normalize(), Vec3::new(j, l, m).normalize());
+            let [cos, pa, q1, _] = next();
+            let (pa, q1) = (pa.abs() * 4.0 + 0.01, q1.abs() * 3.0 + 0.001);
+            let link = Link::new(pos, nf, y, ny, cos);
+            let want = link.geo * link.weight(pa, q1, POOL_WEIGHT);
+            for scale in [1e-10f32, 1.0, 1e12] {
+                let pa = pa / (scale * scale);
+                let q0 = cos * INV_PI;
+                let (inv_p, q01) = (1.0 / (POOL_WEIGHT * pa * cos.abs()), q0 * q0 + q1 * q1);
+                let pooled = PooledLink::new(pos * scale, nf, y * scale, ny, cos, inv_p, q01);
+                assert_eq!((pooled.ok, pooled.behind), (link.ok, link.behind), "scale {scale}");
+                if link.ok {
+                    let got = pooled.term * scale * scale;
+                    assert!((got - want).abs() <= 1e-4 * want, "scale {scale}: {got} against {want}");
+                    compared += 1;
+                }
+            }
+            open += usize::from(link.ok);
+        }
+        assert!(open > 400 && compared == 3 * open, "{open} open links, {compared} compared");
+    }
 }

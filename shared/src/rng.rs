@@ -41,6 +41,9 @@ pub const SAMPLER_SOBOL: u32 = 1;
 
 /// Keeps the Sobol seeds apart from the independent sampler's keys.
 const SOBOL_KEY: u32 = 0x50b0_1b00;
+/// Keys the hashes that a group of a pixel's samples shares (`Sampler::group_bits`) apart from
+/// the samples' own.
+pub const GROUP_KEY: u32 = 0x9e37_79b9;
 
 /// Sets the Sobol sampler stratifies: the film position and the first two vertices' light and
 /// BSDF sets. Deeper sets draw independent uniforms, at about a third of the cost: a Sobol set
@@ -199,6 +202,13 @@ impl Sampler {
     pub fn independent_4d(&self, tag: u32) -> [f32; 4] {
         let h = pcg4d(self.pixel, self.sample, tag, self.seed ^ 0x5bd1_e995);
         [u32_to_unit_f32(h[0]), u32_to_unit_f32(h[1]), u32_to_unit_f32(h[2]), u32_to_unit_f32(h[3])]
+    }
+
+    /// 32 bits of a hash keyed by `tag` that the pixel's samples `k * size .. (k + 1) * size`
+    /// share (a pooled connection's window of candidates).
+    #[inline]
+    pub fn group_bits(&self, tag: u32, size: u32) -> u32 {
+        pcg4d(self.pixel, self.sample / size, tag, self.seed ^ GROUP_KEY)[0]
     }
 
     /// The sample's index within its pixel.

@@ -356,7 +356,6 @@ pub fn run(r: RenderArgs) -> Result<ExitCode> {
                     f.variant_bits = crate::render::cpu::cpu_variant_bits(f.bits);
                 }
                 f.lanes = matches!(devices, Devices::One(Device::Cpu)) && crate::render::cpu::runs_lanes(&s);
-                f.light_pool = f.connect && s.light_pool;
                 f
             },
             mean_nodes: cost_mean(0),

@@ -37,7 +37,7 @@ pub fn replay(c: &Compiled, s: &RenderSettings, x: u32, y: u32, sample: u32) -> 
     // On the k-d tree, whose nodes the record lists: `auto` is the full stack, as on lavapipe.
     // The wide BVH returns the same hits (`shared::wide_bvh`) but names no k-d nodes.
     let s = &RenderSettings { traversal: s.traversal.resolve(true), ..*s };
-    let params = crate::render::light_pool::pooled(c.params(s, sample, 1)?, s);
+    let params = c.params(s, sample, 1)?;
     let scene = c.view(&params);
     // The pool the render's sample drew from (`render::light_pool`).
     let (pool, first) = crate::render::light_pool::pool_of(&scene, &params, sample, sample + 1);

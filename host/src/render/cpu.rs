@@ -319,7 +319,7 @@ pub fn render(c: &Compiled, s: &RenderSettings, progress: Progress) -> Result<Re
     let n = (w * h) as usize;
     if let Some(a) = s.adaptive {
         let render_samples = variant_rendering(c, s);
-        let params = light_pool::pooled(c.params(s, 0, 0)?, s);
+        let params = c.params(s, 0, 0)?;
         let mut dev = CpuPasses {
             scene: c.view(&params),
             params,
@@ -419,7 +419,7 @@ impl<'a> CpuSums<'a> {
         let n = s.width as usize * s.height as usize;
         Ok(Self {
             c,
-            params: light_pool::pooled(c.params(&s, 0, 0)?, &s),
+            params: c.params(&s, 0, 0)?,
             render_samples: variant_rendering(c, &s),
             s,
             sum: vec![Vec4::ZERO; n],

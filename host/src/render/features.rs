@@ -52,8 +52,9 @@ pub struct Features {
     pub variant_bits: u32,
     /// Whether the CPU ran it sixteen samples at a time (`shared::lanes`).
     pub lanes: bool,
-    /// Whether the connections drew their light subpaths from the CPU's pool
-    /// (`render::light_pool`; the GPU, and the CPU beside one, trace each sample's own).
+    /// Whether the connections draw their light subpaths from the CPU's pool
+    /// (`render::light_pool`): they run and the settings ask for it (the GPU's, and the CPU's
+    /// beside one, do not: `RenderSettings::on_gpu`). `RenderParams::light_pool` is this.
     pub light_pool: bool,
 }
 
@@ -273,7 +274,7 @@ pub fn analyse(c: &Compiled, s: &RenderSettings) -> Features {
         variant: if s.specialize { "specialised" } else { "generic" },
         variant_bits: if s.specialize { bits } else { FEATURES_ALL },
         lanes: false,
-        light_pool: false,
+        light_pool: connect && s.light_pool,
     }
 }
 

@@ -3,18 +3,11 @@
 //! before the samples that use them. A slot's subpath depends only on the seed, its block and
 //! its index, so a sample draws from the same pool in any pass structure (progressive,
 //! adaptive, two blocks at once, another process of a farm).
-use crate::settings::RenderSettings;
 use rayon::prelude::*;
-use shared::connection::{pool_record, LightPool, POOL_RECORD, POOL_SAMPLES, POOL_SLOTS};
+use shared::connection::{pool_record, LightPool, POOL_BLOCK, POOL_FIELDS, POOL_SAMPLES, POOL_SLOTS};
 use shared::features::{Variant, FEATURES_ALL};
 use shared::layout::RenderParams;
 use shared::scene::SceneView;
-
-/// `p` with the connections drawing from the pool of light subpaths where they run and `s`
-/// asks for it (`RenderSettings::light_pool`).
-pub fn pooled(p: RenderParams, s: &RenderSettings) -> RenderParams {
-    RenderParams { light_pool: u32::from(s.light_pool && p.connect != 0), ..p }
-}
 
 /// The pools samples `[start, end)` draw from where `p` asks for them (`trace`), else none.
 pub fn pool_of(scene: &SceneView, p: &RenderParams, start: u32, end: u32) -> (Vec<f32>, u32) {
@@ -34,11 +27,17 @@ pub fn trace(scene: &SceneView, p: &RenderParams, start: u32, end: u32) -> (Vec<
     let first = start / POOL_SAMPLES;
     let blocks = (end - 1) / POOL_SAMPLES + 1 - first;
     let v = Variant::new(FEATURES_ALL, p);
-    let mut records = vec![0.0f32; blocks as usize * POOL_SLOTS as usize * POOL_RECORD];
-    records.par_chunks_mut(POOL_RECORD * 256).enumerate().for_each(|(chunk, out)| {
-        for (i, r) in out.as_chunks_mut::<POOL_RECORD>().0.iter_mut().enumerate() {
-            let k = (chunk * 256 + i) as u32;
-            *r = pool_record(scene, p, v, first + k / POOL_SLOTS, k % POOL_SLOTS);
+    let slots = POOL_SLOTS as usize;
+    let mut records = vec![0.0f32; blocks as usize * POOL_BLOCK];
+    // Each block's records traced in parallel, then written field by field.
+    records.par_chunks_mut(POOL_BLOCK).enumerate().for_each(|(block, out)| {
+        let block = first + block as u32;
+        let mut columns = vec![[0.0f32; POOL_FIELDS]; slots];
+        columns.par_iter_mut().enumerate().for_each(|(slot, r)| *r = pool_record(scene, p, v, block, slot as u32));
+        for (slot, r) in columns.iter().enumerate() {
+            for (f, &x) in r.iter().enumerate() {
+                out[f * slots + slot] = x;
+            }
         }
     });
     (records, first)

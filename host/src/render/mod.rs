@@ -250,6 +250,7 @@ impl Compiled {
                 eye.abs().max_element()
             );
         }
+        let f = crate::render::features::analyse(self, s);
         Ok(RenderParams {
             eye: eye.extend(0.0),
             right: right.extend(0.0),
@@ -284,7 +285,9 @@ impl Compiled {
             sampler: s.sampler.tag(),
             live_count: 0,
             environment_map: self.environment_map,
-            connect: u32::from(crate::render::features::analyse(self, s).connect),
+            connect: u32::from(f.connect),
+            // The GPU's settings (`RenderSettings::on_gpu`) leave the pool off.
+            light_pool: u32::from(f.light_pool),
             ..Default::default()
         })
     }

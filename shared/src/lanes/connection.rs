@@ -3,19 +3,17 @@
 use super::integrator::{gather, light_points, pick_lights, trace_closest, unblocked, LightPoints};
 use super::sampler::LaneSampler;
 use super::warp::{cosine_hemisphere, offset_ray_origin, orthonormal_basis, power_heuristic3, weights};
-use super::{sqrt, F, M, U, V3};
+use super::{sqrt, F, LANES, M, U, V3};
 use crate::connection::{
-    CONNECT_TAG, POOL_CANDIDATES, POOL_PICK_TAG, POOL_RECORD, POOL_SAMPLES, POOL_SLOTS, POOL_WEIGHT,
+    CONNECT_TAG, POOL_BLOCK, POOL_CANDIDATES, POOL_PICK_TAG, POOL_SAMPLES, POOL_SLOTS, POOL_STRIDE, POOL_WINDOW_TAG,
 };
 use crate::layout::{RenderParams, LIGHT_NOT_TRIANGLE, NO_HIT};
 use crate::sampling::INV_PI;
 use crate::scene::SceneView;
-use core::simd::cmp::SimdOrd;
 use core::simd::cmp::{SimdPartialEq, SimdPartialOrd};
 use core::simd::num::SimdFloat;
 use core::simd::num::SimdUint;
 use core::simd::Select;
-use core::simd::Simd;
 
 /// The first vertex of each lane's light subpath: a point on an emitting triangle (picked as
 /// next-event estimation picks it), a cosine-distributed direction, the surface it reaches.
@@ -128,6 +126,31 @@ impl Link {
     }
 }
 
+/// `crate::connection::PooledLink` for sixteen segments.
+struct PooledLink {
+    ok: M,
+    term: F,
+    behind: M,
+}
+
+impl PooledLink {
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn new(pos: V3, nf: V3, y: V3, ny: V3, ny_to_light: F, inv_p: F, q01: F) -> PooledLink {
+        let zero = F::splat(0.0);
+        let d = y - pos;
+        let dist2 = d.dot(d);
+        let (cos_e, cos_ye) = (nf.dot(d), ny.dot(d));
+        let behind = cos_ye.simd_lt(zero);
+        let cos_yl = behind.select(ny_to_light, -ny_to_light);
+        let inv = F::splat(1.0) / dist2;
+        let geo = cos_e * inv * (cos_ye.abs() * inv);
+        let r = geo * inv_p;
+        let term = geo / (F::splat(1.0) + q01 * (r * r));
+        PooledLink { ok: cos_e.simd_gt(zero) & cos_yl.simd_gt(zero) & dist2.simd_gt(zero), term, behind }
+    }
+}
+
 /// The connection strategy at an eye vertex (Lambertian, flat normal `nf` toward the ray's
 /// origin): its path through the light subpath's vertex, MIS-weighted against the path
 /// tracer's two ways of making the same path.
@@ -158,8 +181,10 @@ pub(super) fn connect(
 }
 
 /// `crate::connection::connect_pooled` for sixteen eye vertices: each lane weighs its own
-/// candidates from its own block's pool (gathered), picks one and casts its shadow ray; the
-/// same sums bit for bit.
+/// candidates from its own block's pool, picks one and casts its shadow ray; the same sums bit
+/// for bit. Sixteen samples that make one group of `POOL_STRIDE` read a field of their
+/// candidates `j` as two runs of eight floats (samples `8k ..` and `8k + 8 ..` lie in two
+/// blocks of `POOL_SAMPLES`); other lanes gather.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 pub(super) fn connect_pooled(
@@ -175,35 +200,52 @@ pub(super) fn connect_pooled(
     beta: V3,
     radiance: &mut V3,
 ) {
+    const _: () = assert!(POOL_STRIDE as usize == LANES && 2 * POOL_SAMPLES == POOL_STRIDE);
     let zero = F::splat(0.0);
     let inf = F::splat(f32::INFINITY);
-    let [u0, u1, _, _] = rng.independent_4d(POOL_PICK_TAG + bounce);
+    let u = rng.independent_4d(POOL_PICK_TAG + bounce)[0];
+    let window = pool_windows(rng.group_bits(POOL_WINDOW_TAG + bounce, POOL_STRIDE));
     let records = scene.light_pool.records;
-    let start = (u0 * F::splat(POOL_SLOTS as f32)).cast::<u32>().simd_min(U::splat(POOL_SLOTS - 1));
     let live = alive;
-    let base = (rng.sample() / U::splat(POOL_SAMPLES) - U::splat(scene.light_pool.first_block)) * U::splat(POOL_SLOTS);
+    let sample = rng.sample();
+    let lane = sample % U::splat(POOL_STRIDE);
+    let base = (sample / U::splat(POOL_SAMPLES) - U::splat(scene.light_pool.first_block)) * U::splat(POOL_BLOCK as u32);
+    // One group whose two blocks are both in the pool: lane `i` holds sample `16k + i`.
+    let s0 = sample[0];
+    let grouped = s0.is_multiple_of(POOL_STRIDE)
+        & (sample == U::splat(s0) + U::from_array(core::array::from_fn(|i| i as u32)))
+        & (base[LANES - 1] as usize + POOL_BLOCK <= records.len());
     let enable = live.cast::<isize>();
-    // Field `k` of each lane's record in slot `start + j`, wrapping in its block.
-    let slot = |j: U| base + ((start + j) & U::splat(POOL_SLOTS - 1));
-    let field = |at: U, k: usize| {
-        let i = at.cast::<usize>() * Simd::splat(POOL_RECORD) + Simd::splat(k);
+    // Field `f` of each lane's candidate in slot `at` (the window's row plus the lane).
+    let gathered = |at: U, f: usize| {
+        let i = (base + U::splat((f * POOL_SLOTS as usize) as u32) + at).cast::<usize>();
         F::gather_select(records, enable, i, zero)
+    };
+    // Field `f` of the group's candidates `j`: row `row` of the window in both blocks.
+    let (lo, hi) = (base[0] as usize, base[LANES - 1] as usize + LANES / 2);
+    let rows = |row: usize, f: usize| {
+        let at = f * POOL_SLOTS as usize + row;
+        let mut v = [0.0f32; LANES];
+        v[..LANES / 2].copy_from_slice(&records[lo + at..lo + at + LANES / 2]);
+        v[LANES / 2..].copy_from_slice(&records[hi + at..hi + at + LANES / 2]);
+        F::from_array(v)
     };
     let mut c = [V3::ZERO; POOL_CANDIDATES];
     let mut w = [zero; POOL_CANDIDATES];
     let mut behind = [M::splat(false); POOL_CANDIDATES];
     let mut sum = zero;
     for j in 0..POOL_CANDIDATES {
-        let at = slot(U::splat(j as u32));
-        let y = V3::new(field(at, 0), field(at, 1), field(at, 2));
-        let ny = V3::new(field(at, 3), field(at, 4), field(at, 5));
-        let link = Link::new(pos, nf, y, ny, field(at, 6));
+        let row = (window + U::splat(POOL_STRIDE * j as u32)) & U::splat(POOL_SLOTS - 1);
+        let (row0, at) = (row[0] as usize, row + lane);
+        let field = |f: usize| if grouped { rows(row0, f) } else { gathered(at, f) };
+        let y = V3::new(field(0), field(1), field(2));
+        let ny = V3::new(field(3), field(4), field(5));
+        let link = PooledLink::new(pos, nf, y, ny, field(6), field(7), field(8));
         let ok = live & link.ok;
         if !ok.any() {
             continue;
         }
-        let w2 = link.weight(field(at, 7), field(at, 8), F::splat(POOL_WEIGHT));
-        let cj = (beta * albedo * V3::new(field(at, 9), field(at, 10), field(at, 11))).scale(link.geo * w2);
+        let cj = (beta * albedo * V3::new(field(9), field(10), field(11))).scale(link.term);
         let wj = cj.x + cj.y + cj.z;
         let keep = ok & wj.simd_gt(zero) & wj.simd_lt(inf);
         c[j] = V3::select(keep, cj, V3::ZERO);
@@ -216,7 +258,7 @@ pub(super) fn connect_pooled(
         return;
     }
     // The pick, lane by lane as `connect_pooled` walks the candidates.
-    let mut pick = u1 * sum;
+    let mut pick = u * sum;
     let mut y = U::splat(0);
     let mut found = M::splat(false);
     for (j, &wj) in w.iter().enumerate() {
@@ -233,11 +275,18 @@ pub(super) fn connect_pooled(
         wy = m.select(w[j], wy);
         by = m.select(behind[j], by);
     }
-    let at = slot(y);
-    let q = V3::new(field(at, 0), field(at, 1), field(at, 2));
-    let ny = V3::new(field(at, 3), field(at, 4), field(at, 5));
-    let target = offset_ray_origin(q, field(at, 12), V3::select(by, ny, -ny));
+    let at = ((window + U::splat(POOL_STRIDE) * y) & U::splat(POOL_SLOTS - 1)) + lane;
+    let field = |f: usize| gathered(at, f);
+    let q = V3::new(field(0), field(1), field(2));
+    let ny = V3::new(field(3), field(4), field(5));
+    let target = offset_ray_origin(q, field(12), V3::select(by, ny, -ny));
     let open = unblocked(scene, p, spawn, target - spawn, go) & go;
     let added = cy.scale(sum / (F::splat(POOL_CANDIDATES as f32) * wy));
     *radiance = V3::select(open, *radiance + added, *radiance);
+}
+
+/// `crate::connection::pool_window` lane by lane.
+#[inline(always)]
+fn pool_windows(bits: U) -> U {
+    (bits >> U::splat(32 - (POOL_SLOTS / POOL_STRIDE).trailing_zeros())) * U::splat(POOL_STRIDE)
 }

@@ -4,7 +4,7 @@
 //! between lanes: the scrambles, the Sobol matrices and the hashes are integer operations on
 //! sixteen indices at once.
 use super::{F, U};
-use crate::rng::{PixelSeeds, SAMPLER_SOBOL, SOBOL_SETS};
+use crate::rng::{PixelSeeds, GROUP_KEY, SAMPLER_SOBOL, SOBOL_SETS};
 use core::simd::cmp::SimdPartialEq;
 use core::simd::num::SimdUint;
 use core::simd::Select;
@@ -132,6 +132,12 @@ impl LaneSampler {
     pub fn next_2d(&mut self) -> (F, F) {
         let b = self.bits(false);
         (unit(b[0]), unit(b[1]))
+    }
+
+    /// `Sampler::group_bits`, lane by lane.
+    #[inline(always)]
+    pub fn group_bits(&self, tag: u32, size: u32) -> U {
+        pcg4d(U::splat(self.pixel), self.sample / U::splat(size), U::splat(tag), U::splat(self.seed ^ GROUP_KEY))[0]
     }
 
     /// The lanes' sample indices.

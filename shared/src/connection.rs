@@ -412,20 +412,18 @@ pub fn connect<R: Recorder>(
 }
 
 /// The pooled connection at an eye vertex (Lambertian, flat normal `nf` toward the ray's
-/// origin): weighs the `POOL_CANDIDATES` records of `records` (a block's) that the sample at
-/// `lane` of its group takes from `window` (`pool_slot`) by their unshadowed contributions
-/// (MIS-weighted as `connect`'s), picks one in proportion by `u` and adds its contribution times
-/// the mean weight over the picked one's, if a shadow ray reaches it.
+/// origin) at bounce `bounce` of `rng`'s sample: weighs the `POOL_CANDIDATES` records of the
+/// sample's block that it takes from its group's window (`pool_window`, `pool_slot`) by their
+/// unshadowed contributions (MIS-weighted as `connect`'s), picks one in proportion and adds its
+/// contribution times the mean weight over the picked one's, if a shadow ray reaches it.
 #[cfg(not(target_arch = "spirv"))]
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 pub fn connect_pooled<R: Recorder>(
     scene: &SceneView,
     p: &RenderParams,
-    records: &[f32],
-    window: u32,
-    lane: u32,
-    u: f32,
+    rng: &Sampler,
+    bounce: u32,
     pos: Vec3,
     spawn: Vec3,
     nf: Vec3,
@@ -434,6 +432,9 @@ pub fn connect_pooled<R: Recorder>(
     radiance: &mut Vec3,
     rec: &mut R,
 ) {
+    let window = pool_window(rng.group_bits(POOL_WINDOW_TAG + bounce, POOL_STRIDE));
+    let (lane, u) = (rng.sample() % POOL_STRIDE, rng.independent_4d(POOL_PICK_TAG + bounce)[0]);
+    let records = scene.light_pool.of_sample(rng.sample());
     let field = |slot: usize, f: usize| records[f * POOL_SLOTS as usize + slot];
     let mut c = [Vec3::ZERO; POOL_CANDIDATES];
     let mut w = [0.0f32; POOL_CANDIDATES];

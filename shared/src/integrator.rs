@@ -418,12 +418,7 @@ fn shade_vertex<R: Recorder>(
         let albedo = Vec3::new(mat.albedo.x, mat.albedo.y, mat.albedo.z);
         #[cfg(not(target_arch = "spirv"))]
         if p.light_pool != 0 {
-            use crate::connection::{pool_window, POOL_PICK_TAG, POOL_STRIDE, POOL_WINDOW_TAG};
-            let window = pool_window(rng.group_bits(POOL_WINDOW_TAG + path.bounce, POOL_STRIDE));
-            let (lane, u) = (rng.sample() % POOL_STRIDE, rng.independent_4d(POOL_PICK_TAG + path.bounce)[0]);
-            let records = scene.light_pool.of_sample(rng.sample());
-            let c = (pos, spawn, nf, albedo, path.beta);
-            connect_pooled(scene, p, records, window, lane, u, c.0, c.1, c.2, c.3, c.4, &mut path.radiance, rec);
+            connect_pooled(scene, p, rng, path.bounce, pos, spawn, nf, albedo, path.beta, &mut path.radiance, rec);
         } else {
             connect(scene, p, lv, pos, spawn, nf, albedo, path.beta, &mut path.radiance, rec);
         }

@@ -345,11 +345,7 @@ pub fn run(r: RenderArgs) -> Result<ExitCode> {
             features: {
                 // The CPU draws from the pool only where no GPU renders (`render::multi`); a GPU
                 // connects as `RenderSettings::on_gpu` says.
-                let cpu_alone = match devices {
-                    Devices::One(d) => matches!(d, Device::Cpu),
-                    Devices::Many(_) => run.shares.as_ref().is_some_and(|v| v.iter().all(|u| !u.gpu)),
-                };
-                let s = if cpu_alone { s } else { s.on_gpu() };
+                let s = if devices.any_gpu() { s.on_gpu() } else { s };
                 let mut f = features::analyse(c, &s);
                 // The CPU compiles one variant per set of the non-material bits and material mode.
                 if matches!(devices, Devices::One(Device::Cpu)) && s.specialize {

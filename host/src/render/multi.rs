@@ -68,9 +68,6 @@ pub struct Share {
     pub samples_per_s: f64,
     #[serde(skip)]
     seconds: f64,
-    /// Whether it is a GPU.
-    #[serde(skip)]
-    pub gpu: bool,
 }
 
 /// The result: the fold of every block rendered, the primary hits (from the device that
@@ -139,7 +136,6 @@ pub fn render(
             share: 0.0,
             samples_per_s: 0.0,
             seconds: 0.0,
-            gpu: g.is_some(),
         })
         .collect();
     let (first, end) = (block_of(a), block_of(b - 1) + 1);

@@ -42,8 +42,6 @@ fn cpu_and_lavapipe_render_the_same_adaptive_image() {
     for mode in [AdaptiveMode::Pilot, AdaptiveMode::AsYouGo] {
         let s = settings(&l, 16, 12, 64, adaptive(0.1, mode));
         let b = g.render(&l.compiled, &s, &no_progress).unwrap();
-        // Each sample's own light subpath for the connections, as the GPU traces them.
-        let s = RenderSettings { light_pool: false, ..s };
         let a = cpu::render(&l.compiled, &s, &no_progress).unwrap();
         let (lo, hi) = (counts(&a).iter().min().unwrap(), counts(&a).iter().max().unwrap());
         assert!(lo < hi, "{mode:?}: every pixel got {lo} samples");

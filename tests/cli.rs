@@ -75,15 +75,12 @@ fn renders_the_default_scene_on_both_devices_with_json() {
         let f = &line["features"];
         assert_eq!((f["emitters"].as_u64(), f["environment"].as_str()), (Some(2), Some("black")), "{f}");
         assert_eq!((f["indirect"].as_bool(), f["variant"].as_str()), (Some(true), Some("specialised")), "{f}");
-        // Emitters, many emitters, diffuse, indirect light: the variant of both devices, and on
-        // the CPU the light subpaths' connections (bit 14), drawn from its pool. The GPU traces
-        // each sample's own, and there `auto` leaves them off: most of what the camera sees,
-        // the lamp lights directly.
-        let cpu = device == "cpu";
-        let bits = if cpu { 27 | 1 << 14 } else { 27 };
+        // Emitters, many emitters, diffuse, indirect light and the light subpaths' connections
+        // (bit 14), drawn from the pool: the variant of both devices.
+        let bits = 27 | 1 << 14;
         assert_eq!((f["bits"].as_u64(), f["variant_bits"].as_u64()), (Some(bits), Some(bits)), "{f}");
-        assert_eq!((f["connect"].as_bool(), f["light_pool"].as_bool()), (Some(cpu), Some(cpu)), "{f}");
-        assert_eq!(f["seen_light_share"].as_f64().is_some_and(|share| share > 0.5), !cpu, "{f}");
+        assert_eq!((f["connect"].as_bool(), f["light_pool"].as_bool()), (Some(true), Some(true)), "{f}");
+        assert!(f["seen_light_share"].is_null(), "{f}");
         assert_eq!(
             (line["width"].as_u64(), line["height"].as_u64(), line["spp"].as_u64()),
             (Some(40), Some(30), Some(4))
@@ -445,8 +442,8 @@ intensity = 2
             assert!(o.status.success(), "{scene} {extra:?}: {}", stderr(&o));
             let line: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
             assert_eq!(line["features"]["lanes"], lanes, "{scene} {extra:?}: {line}");
-            // The CPU alone draws every connection's light subpath from its pool (uneven-noise
-            // connects, asked to or by `auto`).
+            // Every connection draws its light subpath from the pool (uneven-noise connects,
+            // asked to or by `auto`).
             let f = &line["features"];
             assert_eq!(f["light_pool"], f["connect"], "{scene} {extra:?}: {line}");
             assert!(!scene.contains("uneven-noise") || f["connect"] == true, "{scene} {extra:?}: {line}");

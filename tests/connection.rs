@@ -34,7 +34,7 @@ fn render(c: &Compiled, s: &RenderSettings, connect: Connect, seed: u32, spp: u3
     cpu::render(c, &RenderSettings { connect, seed, spp, ..*s }, &no_progress).unwrap()
 }
 
-/// `render` with each sample's own light subpath instead of the pool (the GPU's estimator).
+/// `render` with each sample's own light subpath instead of the pool (`--light-pool off`).
 fn render_own(c: &Compiled, s: &RenderSettings, seed: u32, spp: u32) -> Rendered {
     render(c, &RenderSettings { light_pool: false, ..*s }, Connect::On, seed, spp)
 }
@@ -121,12 +121,12 @@ fn the_share_is_kept_per_camera() {
 fn connections_run_where_asked_for_and_where_the_scene_allows() {
     let (c, s) = room(1.0);
     assert_eq!(s.connect, Connect::Auto, "auto by default: the scene file does not say");
-    // Drawn from the CPU's pool, the connections run wherever the scene allows them.
+    // Drawn from the pool, the connections run wherever the scene allows them.
     let pooled = features::analyse(&c, &s);
     assert!(pooled.connect && pooled.seen_light_share.is_none(), "auto with the pool connects");
-    // Each sample with its own light subpath (the GPU's): the lamp is behind a partition, and
-    // most of what the camera sees is lit after a bounce.
-    let f = features::analyse(&c, &s.on_gpu());
+    // Each sample with its own light subpath (`--light-pool off`): the lamp is behind a
+    // partition, and most of what the camera sees is lit after a bounce.
+    let f = features::analyse(&c, &RenderSettings { light_pool: false, ..s });
     let share = f.seen_light_share.expect("auto decides");
     assert!(share < features::AUTO_CONNECT_BELOW, "{share}");
     assert!(f.connect, "on by default in this room, {share} of the first hits seeing the lamp");

@@ -21,8 +21,6 @@ use shared::glam::DVec3;
 fn no_progress(_: u64, _: u64) {}
 
 fn agree_on(c: &Compiled, s: &RenderSettings, what: &str) {
-    // The GPU's estimator: each sample traces its own light subpath for the connections.
-    let s = &s.on_gpu();
     let cpu_img = cpu::render(c, s, &no_progress).unwrap();
     // The images are not trivially equal: the scene is lit and noisy.
     let mean: f32 = cpu_img.mean().iter().map(|p| p[0] + p[1] + p[2]).sum::<f32>() / cpu_img.mean().len() as f32;

@@ -38,16 +38,6 @@ fn repo(rel: &str) -> String {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..").join(rel).to_string_lossy().into_owned()
 }
 
-/// The CPU's connections each from their sample's own light subpath, the GPU's estimator.
-const OWN_LIGHT: &[&str] = &["--light-pool", "off"];
-
-/// The CPU's whole render at `spp` with the GPU's estimator (`OWN_LIGHT`): image and variance,
-/// what merged parts from a GPU must equal.
-fn own_light_whole(spp: u32, name: &str) -> (Vec<u8>, Vec<u8>) {
-    let (image, variance, _) = single_with(spp, "cpu", name, OWN_LIGHT);
-    (image, variance)
-}
-
 fn tmp(name: &str) -> String {
     let dir = std::env::temp_dir().join(format!("kdtrace-partial-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -132,12 +122,11 @@ fn random_splits_merge_to_the_single_render_bit_for_bit() {
 
 #[test]
 fn a_lavapipe_part_merges_with_cpu_parts_bit_for_bit() {
-    // The CPU's parts trace each sample's own light subpath, as the GPU does.
-    let want = own_light_whole(40, "single-40");
+    let want = single(40, "cpu", "single-40");
     let files = [tmp("l0.kdp"), tmp("l1.kdp"), tmp("l2.kdp")];
-    part(&scene(), 0, 16, "cpu", &files[0], OWN_LIGHT);
+    part(&scene(), 0, 16, "cpu", &files[0], &[]);
     part(&scene(), 16, 24, "gpu", &files[1], &["--adapter", "llvmpipe"]);
-    part(&scene(), 24, 40, "cpu", &files[2], OWN_LIGHT);
+    part(&scene(), 24, 40, "cpu", &files[2], &[]);
     let got = merged(&files, "merged-lavapipe");
     assert!(got.0 == want.0 && got.1 == want.1, "a part from lavapipe changes the merged image");
 }
@@ -204,9 +193,7 @@ fn cpu_and_lavapipe() -> String {
 #[test]
 fn every_device_at_once_renders_the_cpus_image_bit_for_bit() {
     let devices = cpu_and_lavapipe();
-    // The CPU beside a GPU traces each sample's own light subpath, as the GPU does: the image
-    // is the CPU's alone with `--light-pool off`.
-    let want = own_light_whole(64, "single-cpu-64");
+    let want = single(64, "cpu", "single-cpu-64");
     let (image, variance, o) = single_with(64, &devices, "all", &["--json"]);
     assert!(image == want.0, "--device {devices}: the image differs from the CPU's");
     assert!(variance == want.1, "--device {devices}: the variance differs from the CPU's");
@@ -221,7 +208,7 @@ fn every_device_at_once_renders_the_cpus_image_bit_for_bit() {
     // Several devices write parts too: their blocks merge with a CPU part.
     let (p0, p1) = (tmp("all-0.kdp"), tmp("all-1.kdp"));
     part(&scene(), 0, 40, &devices, &p0, &[]);
-    part(&scene(), 40, 64, "cpu", &p1, OWN_LIGHT);
+    part(&scene(), 40, 64, "cpu", &p1, &[]);
     assert!(merged(&[p0, p1], "merged-all") == want, "--device {devices} --partial: the merge differs");
     // Adaptive sampling is one device's.
     refused(

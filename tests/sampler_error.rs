@@ -90,8 +90,7 @@ fn both_samplers_are_bit_identical_on_cpu_and_gpu() {
     let g = gpu::Gpu::lavapipe().unwrap_or_else(|e| panic!("{e:#}"));
     let c = cornell();
     for sampler in [SamplerKind::Sobol, SamplerKind::Independent] {
-        // The GPU's estimator: each sample traces its own light subpath for the connections.
-        let s = settings(sampler, 7, 8, 24).on_gpu();
+        let s = settings(sampler, 7, 8, 24);
         let a = cpu::render(&c, &s, &no_progress).unwrap();
         let b = g.render(&c, &s, &no_progress).unwrap();
         let same = a.sum.iter().zip(&b.sum).filter(|(x, y)| x == y).count();

@@ -139,7 +139,9 @@ fn frames_arrive_and_the_last_equals_the_cli_render() {
         assert!(frames.len() >= 2, "a 12-sample render came as {} frame(s); passes start at one sample", frames.len());
         let spps: Vec<u64> = frames.iter().map(|(p, _)| p["spp"].as_u64().unwrap()).collect();
         assert!(spps.windows(2).all(|w| w[0] < w[1]), "spp does not grow frame by frame: {spps:?}");
-        assert_eq!(spps[0], 1, "the first frame has one sample per pixel");
+        // Passes start at one sample and at most double, but a client that reads late sees only
+        // the newest frame (`serve::job`): the first one it gets may hold a few passes.
+        assert!(spps[0] < 12, "the first frame came with the whole render: {spps:?}");
         assert_eq!(*spps.last().unwrap(), 12);
         for (p, _) in &frames {
             assert_eq!(p["target"], 12);

@@ -137,14 +137,12 @@ fn scaled_and_moved_cornell_boxes_render_like_the_plain_one() {
             local.origin = origin;
             let world_img = cpu::render(&world, &s, &no_progress).unwrap();
             let world_gpu = g.render(&world, &s, &no_progress).unwrap();
-            // The devices compared on the same k-d tree (the CPU with the GPU's estimator, each
-            // sample's own light subpath): 0.04 units off a surface, rays in
+            // The devices compared on the same k-d tree: 0.04 units off a surface, rays in
             // corners meet the next wall within rounding (t ≈ 1e-9), a hit that brute force and
             // the CPU path's wide BVH find and a k-d traversal finds or not, by where its splits
             // fall (5 of 2304 pixels differ).
             let world_kd =
-                cpu::render(&world, &RenderSettings { traversal: Traversal::Full, ..s.on_gpu() }, &no_progress)
-                    .unwrap();
+                cpu::render(&world, &RenderSettings { traversal: Traversal::Full, ..s }, &no_progress).unwrap();
             let (ratio, z) = (mean_of(&world_img) / mean_of(&reference), block_z(&reference, &world_img));
             eprintln!(
                 "shift {shift:e} in world coordinates: mean ratio {ratio:.4}, largest block |z| {z:.2} (bound {:.2})",
@@ -160,8 +158,7 @@ fn scaled_and_moved_cornell_boxes_render_like_the_plain_one() {
         let img = cpu::render(&c, &s, &no_progress).unwrap();
         let gpu_img = g.render(&c, &s, &no_progress).unwrap();
         let z = block_z(&reference, &img);
-        // Against the GPU, the CPU with its estimator: each sample's own light subpath.
-        let agreement = compare(&cpu::render(&c, &s.on_gpu(), &no_progress).unwrap(), &gpu_img);
+        let agreement = compare(&img, &gpu_img);
         eprintln!("scale {scale:e}, shift {shift:e}: largest block |z| {z:.2} (bound {:.2}); CPU/GPU pixels within 1e-3: {}/{}", z_bound(), agreement.pixels_within, agreement.pixels);
         assert!(finite(&img) && finite(&gpu_img), "scale {scale:e}, shift {shift:e}: non-finite or negative samples");
         assert!(

@@ -12,12 +12,13 @@
 //! with other values is that variant, compiled without what its feature set leaves out.
 #![no_std]
 
+use shared::connection::{pool_buffer_record, store_pool_record, POOL_SLOTS};
 use shared::features::{Variant, FEATURE_ALPHA_MASKS};
 use shared::glam::{UVec3, UVec4, Vec4};
 use shared::integrator::{render_pixel, render_samples};
 use shared::layout::{
     KdNode, Light, Material, RayQuery, RayResult, RenderParams, TriBlock, Triangle, TriangleAttributes, TriangleInfo,
-    LIST_GROUP, PERSISTENT_GROUP,
+    LIST_GROUP, PERSISTENT_GROUP, POOL_GROUP,
 };
 use shared::raycast::cast_ray;
 use shared::scene::SceneView;
@@ -40,10 +41,11 @@ fn view<'a>(
     lights: &'a [Light],
     attributes: &'a [TriangleAttributes],
     textures: &'a [u32],
+    pool: &'a [f32],
     v: Variant,
 ) -> SceneView<'a> {
     let mut scene =
-        SceneView::new(params, nodes, indices, blocks, triangles, info, materials, lights, attributes, textures);
+        SceneView::new(params, nodes, indices, blocks, triangles, info, materials, lights, attributes, textures, pool);
     scene.alpha_masks = v.has(FEATURE_ALPHA_MASKS);
     scene
 }
@@ -69,12 +71,13 @@ pub fn render_pass(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] accum: &mut [Vec4],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] primary: &mut [u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 12)] accum_sq: &mut [Vec4],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 17)] pool: &mut [f32],
 ) {
     if (id.x >= params.width) | (id.y >= params.height) {
         return;
     }
     let v = Variant::from_spec(features, max_bounces, rr_start, params);
-    let scene = view(params, nodes, indices, blocks, triangles, info, materials, lights, attributes, textures, v);
+    let scene = view(params, nodes, indices, blocks, triangles, info, materials, lights, attributes, textures, pool, v);
     let pixel = (id.y * params.width + id.x) as usize;
     render_pixel(&scene, params, v, id.x, id.y, &mut accum[pixel], &mut accum_sq[pixel], &mut primary[pixel]);
 }
@@ -107,9 +110,10 @@ pub fn render_persistent(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] primary: &mut [u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 11)] queue: &mut [u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 12)] accum_sq: &mut [Vec4],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 17)] pool: &mut [f32],
 ) {
     let v = Variant::from_spec(features, max_bounces, rr_start, params);
-    let scene = view(params, nodes, indices, blocks, triangles, info, materials, lights, attributes, textures, v);
+    let scene = view(params, nodes, indices, blocks, triangles, info, materials, lights, attributes, textures, pool, v);
     let total = params.width * params.height;
     let mut running = true;
     let mut round = 0;
@@ -167,13 +171,14 @@ pub fn render_list(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] primary: &mut [u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 12)] accum_sq: &mut [Vec4],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 14)] live: &[UVec4],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 17)] pool: &mut [f32],
 ) {
     let i = id.y * groups.x * LIST_GROUP + id.x;
     if i >= params.live_count {
         return;
     }
     let v = Variant::from_spec(features, max_bounces, rr_start, params);
-    let scene = view(params, nodes, indices, blocks, triangles, info, materials, lights, attributes, textures, v);
+    let scene = view(params, nodes, indices, blocks, triangles, info, materials, lights, attributes, textures, pool, v);
     let e = live[i as usize];
     let (x, y, pixel) = (e.x % params.width, e.x / params.width, e.x as usize);
     render_samples(&scene, params, v, x, y, e.y, e.z, &mut accum[pixel], &mut accum_sq[pixel], &mut primary[pixel]);
@@ -196,12 +201,43 @@ pub fn cast_rays(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 16)] textures: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 9)] rays: &[RayQuery],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 10)] results: &mut [RayResult],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 17)] pool: &mut [f32],
 ) {
     let i = id.x as usize;
     if i >= rays.len() {
         return;
     }
     let scene =
-        SceneView::new(params, nodes, indices, blocks, triangles, info, materials, lights, attributes, textures);
+        SceneView::new(params, nodes, indices, blocks, triangles, info, materials, lights, attributes, textures, pool);
     results[i] = cast_ray(&scene, &rays[i]);
+}
+
+/// One invocation per light subpath of the pools of `params.sample_count` blocks from
+/// `params.pool_first_block`: traces it and stores its record (`connection::pool_buffer_record`).
+/// The grid is two-dimensional, as `render_list`'s, for pools of more than 65,535 workgroups.
+#[spirv(compute(threads(64, 1, 1)))]
+#[allow(clippy::too_many_arguments)]
+pub fn trace_pool(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(num_workgroups)] groups: UVec3,
+    #[spirv(uniform, descriptor_set = 0, binding = 0)] params: &RenderParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] nodes: &[KdNode],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] indices: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] triangles: &[Triangle],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] info: &[TriangleInfo],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] materials: &[Material],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] lights: &[Light],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 13)] blocks: &[TriBlock],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 15)] attributes: &[TriangleAttributes],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 16)] textures: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 17)] pool: &mut [f32],
+) {
+    let i = id.y * groups.x * POOL_GROUP + id.x;
+    if i >= params.sample_count * POOL_SLOTS {
+        return;
+    }
+    let scene =
+        SceneView::new(params, nodes, indices, blocks, triangles, info, materials, lights, attributes, textures, pool);
+    let record = pool_buffer_record(&scene, params, i);
+    store_pool_record(pool, i, &record);
 }

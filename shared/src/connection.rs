@@ -11,10 +11,12 @@
 //! emitter-hit and light-sample weights take the third density from `inv_pi_area` of the eye
 //! vertex before, and the three weights of a path sum to one.
 //!
-//! On the CPU the light subpaths are not the sample's own but drawn from a pool that all pixels
-//! share (`LightPool`): the host traces `POOL_SLOTS` of them for every block of `POOL_SAMPLES`
-//! samples, and each eye vertex weighs `POOL_CANDIDATES` of them from a random window by
-//! their unshadowed contributions, picks one in proportion and traces one shadow ray to it
+//! With the light pool (`RenderParams::light_pool`, the default) the light subpaths are not the
+//! sample's own but drawn from a pool that all pixels share (`LightPool`): `POOL_SLOTS` of
+//! them are traced for every block of `POOL_SAMPLES` samples before those samples run (on the
+//! CPU by the host, on a GPU by the `trace_pool` entry point, both through `pool_record`),
+//! and each eye vertex weighs `POOL_CANDIDATES` of them from a random window by their
+//! unshadowed contributions, picks one in proportion and traces one shadow ray to it
 //! (resampled importance sampling: Talbot et al. 2005; the pool of light vertices: Davidovič et
 //! al. 2014, "Progressive light transport simulation on the GPU", the light vertex cache). The
 //! estimate is unbiased whatever the weights, and costs one shadow ray as before, but an eye
@@ -22,18 +24,19 @@
 //! better than one connection, its density in the three strategies' weights is counted
 //! `POOL_WEIGHT` times (any factor keeps the weights summing to one).
 //!
-//! The pool is stored field by field (`POOL_FIELDS` rows of `POOL_SLOTS` floats a block), and the
-//! `POOL_STRIDE` samples of a pixel that the lane integrator runs together share one window of
-//! `POOL_STRIDE * POOL_CANDIDATES` slots (`pool_window`, hashed from the pixel, their group and
-//! the bounce): sample `s`'s candidate `j` is slot `window + POOL_STRIDE * j + s % POOL_STRIDE`.
-//! The samples' candidates are distinct, and sixteen lanes read a field of their candidates `j`
-//! from consecutive floats rather than by a gather.
+//! The pool is stored field by field (`POOL_FIELDS` rows of `POOL_SLOTS` floats a block,
+//! `pool_index`), and the `POOL_STRIDE` samples of a pixel that the CPU's lane integrator runs
+//! together share one window of `POOL_STRIDE * POOL_CANDIDATES` slots (`pool_window`, hashed
+//! from the pixel, their group and the bounce): sample `s`'s candidate `j` is slot
+//! `window + POOL_STRIDE * j + s % POOL_STRIDE`. The samples' candidates are distinct, and
+//! sixteen lanes read a field of their candidates `j` from consecutive floats rather than by a
+//! gather.
 //!
 //! It serves scenes where `features::connection_applies`: Lambertian vertices at both ends (the
 //! BSDF is albedo / pi), flat normals, emitting triangles. `RenderParams::connect` switches it on
 //! and `FEATURE_CONNECT` compiles it; the lane integrator runs the same estimator sixteen samples
 //! at a time (`lanes::integrator`).
-use crate::features::{Variant, FEATURE_CONNECT, FEATURE_MANY_EMITTERS};
+use crate::features::{Variant, FEATURES_ALL, FEATURE_CONNECT, FEATURE_MANY_EMITTERS};
 use crate::glam::Vec3;
 use crate::integrator::SHADOW_EPSILON;
 use crate::layout::{RenderParams, AOV_RADIANCE, LIGHT_NOT_TRIANGLE};
@@ -74,26 +77,31 @@ pub const POOL_FIELDS: usize = 13;
 /// Floats of a block's pool: `POOL_FIELDS` rows of `POOL_SLOTS`.
 pub const POOL_BLOCK: usize = POOL_FIELDS * POOL_SLOTS as usize;
 /// Seeds the pool's hash apart from the pixels' samplers.
-#[cfg(not(target_arch = "spirv"))]
 const POOL_SEED: u32 = 0x7f4a_7c15;
+/// Bits of a window's index in its block (`pool_window`).
+const POOL_WINDOW_BITS: u32 = (POOL_SLOTS / POOL_STRIDE).trailing_zeros();
 
-/// The light subpaths of blocks `first_block ..` (`POOL_BLOCK` floats a block, field `f` of slot
-/// `t` at `f * POOL_SLOTS + t`), shared by every pixel's samples in those blocks.
-#[cfg(not(target_arch = "spirv"))]
-#[derive(Clone, Copy, Default)]
+/// The light subpaths of blocks `first_block ..` (`POOL_BLOCK` floats a block, `pool_index`),
+/// shared by every pixel's samples in those blocks.
+#[derive(Clone, Copy)]
+#[cfg_attr(not(target_arch = "spirv"), derive(Default))]
 pub struct LightPool<'a> {
     pub records: &'a [f32],
     pub first_block: u32,
 }
 
-#[cfg(not(target_arch = "spirv"))]
-impl<'a> LightPool<'a> {
-    /// The records of sample `sample`'s block.
+impl LightPool<'_> {
+    /// Where the records of sample `sample`'s block start in `records`.
     #[inline(always)]
-    pub fn of_sample(&self, sample: u32) -> &'a [f32] {
-        let at = (sample / POOL_SAMPLES - self.first_block) as usize * POOL_BLOCK;
-        &self.records[at..at + POOL_BLOCK]
+    pub fn offset(&self, sample: u32) -> usize {
+        (sample / POOL_SAMPLES - self.first_block) as usize * POOL_BLOCK
     }
+}
+
+/// Where field `field` of slot `slot` of the `block`th block of a pool buffer is.
+#[inline(always)]
+pub fn pool_index(block: usize, field: usize, slot: usize) -> usize {
+    block * POOL_BLOCK + field * POOL_SLOTS as usize + slot
 }
 
 /// The factor on the connection strategy's density in the weights: `POOL_WEIGHT` for the pooled
@@ -108,12 +116,30 @@ pub fn connection_weight(p: &RenderParams) -> f32 {
 }
 
 /// Slot `slot` of block `block`'s pool: a light subpath as `light_vertex` traces one, from
-/// uniforms hashed from the block, the slot and the seed. `v` only picks the light as the
-/// render's variant does.
-#[cfg(not(target_arch = "spirv"))]
-pub fn pool_record(scene: &SceneView, p: &RenderParams, v: Variant, block: u32, slot: u32) -> [f32; POOL_FIELDS] {
+/// uniforms hashed from the block, the slot and the seed. Traced with the generic variant,
+/// whichever variant renders: the pool is the same for every variant of a render.
+pub fn pool_record(scene: &SceneView, p: &RenderParams, block: u32, slot: u32) -> [f32; POOL_FIELDS] {
     let rng = Sampler::new(crate::rng::SAMPLER_INDEPENDENT, slot, block, p.seed ^ POOL_SEED);
-    light_vertex(scene, p, v, &rng).record()
+    light_vertex(scene, p, Variant::new(FEATURES_ALL, p), &rng).record()
+}
+
+/// The record of light subpath `index` of a pool buffer whose first block is
+/// `p.pool_first_block`: slot `index % POOL_SLOTS` of the `index / POOL_SLOTS`th block
+/// (`pool_record`).
+#[inline(always)]
+pub fn pool_buffer_record(scene: &SceneView, p: &RenderParams, index: u32) -> [f32; POOL_FIELDS] {
+    pool_record(scene, p, p.pool_first_block + index / POOL_SLOTS, index % POOL_SLOTS)
+}
+
+/// Stores record `r` of light subpath `index` (`pool_buffer_record`) field by field in `pool`.
+#[inline(always)]
+pub fn store_pool_record(pool: &mut [f32], index: u32, r: &[f32; POOL_FIELDS]) {
+    let (block, slot) = ((index / POOL_SLOTS) as usize, (index % POOL_SLOTS) as usize);
+    let mut f = 0;
+    while f < POOL_FIELDS {
+        pool[pool_index(block, f, slot)] = r[f];
+        f += 1;
+    }
 }
 
 /// Whether the connection strategy runs for variant `v` with `p`: compiled in (`FEATURE_CONNECT`),
@@ -198,7 +224,6 @@ pub struct LightVertex {
 impl LightVertex {
     /// The vertex as a pool record (`POOL_FIELDS`); zeros, which no eye vertex picks, where it
     /// is not valid.
-    #[cfg(not(target_arch = "spirv"))]
     pub fn record(&self) -> [f32; POOL_FIELDS] {
         if !self.valid {
             return [0.0; POOL_FIELDS];
@@ -347,7 +372,6 @@ impl Link {
 /// q2² / (q2² + q0² + q1²) is 1 / (1 + (q0² + q1²) (geo / P)²), and the record holds 1 / P
 /// (`inv_p`) and q0² + q1² (`q01`); cos_yl enters only as |`ny_to_light`| where the link is
 /// open. The products stay within the squared distance's range at any scale.
-#[cfg(not(target_arch = "spirv"))]
 #[derive(Clone, Copy)]
 pub(crate) struct PooledLink {
     pub(crate) ok: bool,
@@ -356,7 +380,6 @@ pub(crate) struct PooledLink {
     pub(crate) behind: bool,
 }
 
-#[cfg(not(target_arch = "spirv"))]
 impl PooledLink {
     #[inline(always)]
     pub fn new(pos: Vec3, nf: Vec3, y: Vec3, ny: Vec3, ny_to_light: f32, inv_p: f32, q01: f32) -> PooledLink {
@@ -416,9 +439,9 @@ pub fn connect<R: Recorder>(
 /// sample's block that it takes from its group's window (`pool_window`, `pool_slot`) by their
 /// unshadowed contributions (MIS-weighted as `connect`'s), picks one in proportion and adds its
 /// contribution times the mean weight over the picked one's, if a shadow ray reaches it.
-#[cfg(not(target_arch = "spirv"))]
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
+// Index loops over the weights: the kernel's code keeps to them rather than slice iterators.
+#[allow(clippy::too_many_arguments, clippy::needless_range_loop)]
 pub fn connect_pooled<R: Recorder>(
     scene: &SceneView,
     p: &RenderParams,
@@ -434,31 +457,29 @@ pub fn connect_pooled<R: Recorder>(
 ) {
     let window = pool_window(rng.group_bits(POOL_WINDOW_TAG + bounce, POOL_STRIDE));
     let (lane, u) = (rng.sample() % POOL_STRIDE, rng.independent_4d(POOL_PICK_TAG + bounce)[0]);
-    let records = scene.light_pool.of_sample(rng.sample());
-    let field = |slot: usize, f: usize| records[f * POOL_SLOTS as usize + slot];
-    let mut c = [Vec3::ZERO; POOL_CANDIDATES];
+    let (records, at) = (scene.light_pool.records, scene.light_pool.offset(rng.sample()));
+    let beta_albedo = beta * albedo;
     let mut w = [0.0f32; POOL_CANDIDATES];
-    let mut behind = [false; POOL_CANDIDATES];
     let mut sum = 0.0f32;
     for j in 0..POOL_CANDIDATES {
-        let r = |f: usize| field(pool_slot(window, lane, j), f);
-        let (y, ny) = (Vec3::new(r(0), r(1), r(2)), Vec3::new(r(3), r(4), r(5)));
-        let link = PooledLink::new(pos, nf, y, ny, r(6), r(7), r(8));
+        let (link, bw, _) = pooled_candidate(records, at + pool_slot(window, lane, j), pos, nf, beta_albedo);
         if link.ok {
-            let cj = beta * albedo * Vec3::new(r(9), r(10), r(11)) * link.term;
-            let wj = cj.x + cj.y + cj.z;
-            if (wj > 0.0) & (wj < f32::INFINITY) {
-                (c[j], w[j], behind[j]) = (cj, wj, link.behind);
+            // The sum of the contribution's channels written with its common factor taken out,
+            // as Mesa's optimiser (lavapipe) rewrites `a·b + a·c` anyway.
+            let wj = (bw.x + bw.y + bw.z) * link.term;
+            if (wj > 0.0) & (wj <= f32::MAX) {
+                w[j] = wj;
                 sum += wj;
             }
         }
     }
-    if !((sum > 0.0) & (sum < f32::INFINITY)) {
+    if !((sum > 0.0) & (sum <= f32::MAX)) {
         return;
     }
     let mut pick = u * sum;
     let mut y = 0;
-    for (j, &wj) in w.iter().enumerate() {
+    for j in 0..POOL_CANDIDATES {
+        let wj = w[j];
         if wj > 0.0 {
             y = j;
             if pick < wj {
@@ -467,18 +488,51 @@ pub fn connect_pooled<R: Recorder>(
             pick -= wj;
         }
     }
-    let r = |f: usize| field(pool_slot(window, lane, y), f);
-    let (at, ny) = (Vec3::new(r(0), r(1), r(2)), Vec3::new(r(3), r(4), r(5)));
-    let target = offset_ray_origin(at, Vec3::splat(r(12)), if behind[y] { ny } else { -ny });
+    // The picked candidate's link and contribution found again, rather than kept for each.
+    let slot = at + pool_slot(window, lane, y);
+    let (link, bw, (point, ny)) = pooled_candidate(records, slot, pos, nf, beta_albedo);
+    let error = Vec3::splat(pool_field(records, slot, 12));
+    let target = offset_ray_origin(point, error, if link.behind { ny } else { -ny });
     if shadow_open(scene, p, spawn, target, rec) {
-        *radiance += c[y] * (sum / (POOL_CANDIDATES as f32 * w[y]));
+        *radiance += bw * link.term * (sum / (POOL_CANDIDATES as f32 * w[y]));
     }
+}
+
+/// The pool record at `records[slot]` (its first field; `pool_index`) as a candidate for the
+/// eye vertex at `pos`: its link, its unshadowed contribution before the link's term (β times
+/// the albedos and the subpath's power) and its point and normal.
+/// Functions of the slice rather than closures over it: rust-gpu keeps a closure's captured
+/// slice as a struct holding a pointer, which naga rejects.
+#[inline(always)]
+fn pooled_candidate(
+    records: &[f32],
+    slot: usize,
+    pos: Vec3,
+    nf: Vec3,
+    beta_albedo: Vec3,
+) -> (PooledLink, Vec3, (Vec3, Vec3)) {
+    let (y, ny) = (pool_field3(records, slot, 0), pool_field3(records, slot, 3));
+    let (cos, inv_p, q01) = (pool_field(records, slot, 6), pool_field(records, slot, 7), pool_field(records, slot, 8));
+    let link = PooledLink::new(pos, nf, y, ny, cos, inv_p, q01);
+    (link, beta_albedo * pool_field3(records, slot, 9), (y, ny))
+}
+
+/// Field `f` of the pool record at `records[slot]`.
+#[inline(always)]
+fn pool_field(records: &[f32], slot: usize, f: usize) -> f32 {
+    records[slot + pool_index(0, f, 0)]
+}
+
+/// Fields `f` to `f + 2` of the pool record at `records[slot]`.
+#[inline(always)]
+fn pool_field3(records: &[f32], slot: usize, f: usize) -> Vec3 {
+    Vec3::new(pool_field(records, slot, f), pool_field(records, slot, f + 1), pool_field(records, slot, f + 2))
 }
 
 /// The first slot of a window of candidates from 32 hashed bits: a multiple of `POOL_STRIDE`.
 #[inline(always)]
 pub fn pool_window(bits: u32) -> u32 {
-    (bits >> (32 - (POOL_SLOTS / POOL_STRIDE).trailing_zeros())) * POOL_STRIDE
+    (bits >> (32 - POOL_WINDOW_BITS)) * POOL_STRIDE
 }
 
 /// Candidate `j`'s slot for the sample at `lane` of its group (`sample % POOL_STRIDE`), in the

@@ -13,9 +13,7 @@
 //! hits, emission, light and BSDF samples, roulette); the renderers (`render_samples`) pass
 //! `NoRecord`, whose hooks compile to nothing.
 use crate::camera::primary_direction;
-#[cfg(not(target_arch = "spirv"))]
-use crate::connection::connect_pooled;
-use crate::connection::{connect, connection_weight, connects, inv_pi_area, light_vertex, LightVertex};
+use crate::connection::{connect, connect_pooled, connection_weight, connects, inv_pi_area, light_vertex, LightVertex};
 use crate::environment;
 use crate::exp::exp_neg;
 use crate::features::{
@@ -416,14 +414,11 @@ fn shade_vertex<R: Recorder>(
 
     if path.bidir & (path.bounce < v.max_bounces) {
         let albedo = Vec3::new(mat.albedo.x, mat.albedo.y, mat.albedo.z);
-        #[cfg(not(target_arch = "spirv"))]
         if p.light_pool != 0 {
             connect_pooled(scene, p, rng, path.bounce, pos, spawn, nf, albedo, path.beta, &mut path.radiance, rec);
         } else {
             connect(scene, p, lv, pos, spawn, nf, albedo, path.beta, &mut path.radiance, rec);
         }
-        #[cfg(target_arch = "spirv")]
-        connect(scene, p, lv, pos, spawn, nf, albedo, path.beta, &mut path.radiance, rec);
     }
 
     // The lobe pick's uniform, drawn only for a material that has a choice.

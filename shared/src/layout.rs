@@ -389,12 +389,14 @@ pub struct RenderParams {
     /// 1: light subpaths connect to the eye vertices (`features::FEATURE_CONNECT`); the host
     /// sets it only where `features::connection_applies`.
     pub connect: u32,
-    /// 1: the CPU's connections draw their light vertices from the pool of light subpaths shared
-    /// by all pixels (`connection::connect_pooled`, `SceneView::light_pool`); 0: each sample
-    /// traces its own (the GPU's way).
+    /// 1: the connections draw their light vertices from the pool of light subpaths shared by
+    /// all pixels (`connection::connect_pooled`, `SceneView::light_pool`); 0: each sample
+    /// traces its own (`connection::connect`).
     pub light_pool: u32,
+    /// The block of samples whose pool starts the pool buffer (`binding::POOL`): the first
+    /// block a pass's samples draw from, or (`trace_pool`) the first one it traces.
+    pub pool_first_block: u32,
     /// To a multiple of 16 bytes (scalars: a uniform block's arrays would need a 16-byte stride).
-    pub _pad1: u32,
     pub _pad2: u32,
 }
 
@@ -488,10 +490,13 @@ pub mod binding {
     /// The texture table and texels (`texture`), then the rough plastics' coating tables
     /// (`Material::table`), read-only.
     pub const TEXTURES: u32 = 16;
+    /// The pools of light subpaths of the blocks a pass's samples draw from
+    /// (`connection::LightPool`), written by `trace_pool` and read by the render entry points.
+    pub const POOL: u32 = 17;
     /// Bindings in all: the uniform parameters, then storage buffers.
-    pub const COUNT: u32 = 17;
+    pub const COUNT: u32 = 18;
     /// Storage bindings the kernel writes; every other storage binding is read-only.
-    pub const WRITABLE: [u32; 5] = [ACCUM, PRIMARY, RESULTS, QUEUE, ACCUM_SQ];
+    pub const WRITABLE: [u32; 6] = [ACCUM, PRIMARY, RESULTS, QUEUE, ACCUM_SQ, POOL];
 }
 
 /// The render kernel's workgroup is `RENDER_GROUP_SIDE`² invocations, one per pixel.
@@ -503,3 +508,5 @@ pub const PERSISTENT_GROUP: u32 = 64;
 pub const LIST_GROUP: u32 = 64;
 /// The ray-casting kernel's workgroup size.
 pub const CAST_GROUP: u32 = 64;
+/// The pool-tracing kernel's workgroup size (`trace_pool`), a divisor of `POOL_SLOTS`.
+pub const POOL_GROUP: u32 = 64;

@@ -36,14 +36,14 @@ pub struct SceneView<'a> {
     /// (`lanes::split`); empty unless the host chose one.
     #[cfg(not(target_arch = "spirv"))]
     pub split: SplitView<'a>,
-    /// The light subpaths shared by all pixels that the CPU's connections draw from
-    /// (`connection::LightPool`); empty unless the host traced them.
-    #[cfg(not(target_arch = "spirv"))]
+    /// The light subpaths shared by all pixels that the connections draw from
+    /// (`connection::LightPool`); empty where the render does not use them.
     pub light_pool: crate::connection::LightPool<'a>,
 }
 
 impl<'a> SceneView<'a> {
-    /// Binds the buffers; light count and bounds travel in the render parameters.
+    /// Binds the buffers; light count, bounds and the pool's first block travel in the render
+    /// parameters.
     #[inline]
     #[allow(clippy::too_many_arguments)] // one argument per buffer binding
     pub fn new(
@@ -57,6 +57,7 @@ impl<'a> SceneView<'a> {
         lights: &'a [Light],
         attributes: &'a [TriangleAttributes],
         textures: &'a [u32],
+        pool: &'a [f32],
     ) -> Self {
         Self {
             nodes,
@@ -76,8 +77,7 @@ impl<'a> SceneView<'a> {
             wide: WideView::default(),
             #[cfg(not(target_arch = "spirv"))]
             split: SplitView::default(),
-            #[cfg(not(target_arch = "spirv"))]
-            light_pool: crate::connection::LightPool::default(),
+            light_pool: crate::connection::LightPool { records: pool, first_block: params.pool_first_block },
         }
     }
 }

@@ -260,7 +260,7 @@ mod tests {
         let a = TriangleAttributes { n0: n.extend(0.0), n1: n.extend(0.0), n2: n.extend(0.0), uv_v: Vec4::ZERO };
         let p = RenderParams::default();
         let attributes = [a];
-        test(&SceneView::new(&p, &[], &[], &[], &[], &[], &[], &[], &attributes, &[]));
+        test(&SceneView::new(&p, &[], &[], &[], &[], &[], &[], &[], &attributes, &[], &[]));
     }
 
     fn close(a: Vec3, b: Vec3) -> bool {

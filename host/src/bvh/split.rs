@@ -222,7 +222,7 @@ mod tests {
         let s = s.expect("a split");
         let info = vec![TriangleInfo::default(); tris.len()];
         let params = RenderParams { traversal: TRAVERSAL_WIDE_BVH, ..Default::default() };
-        let mut view = SceneView::new(&params, &[], &[], &[], &tris, &info, &[], &[], &[], &[]);
+        let mut view = SceneView::new(&params, &[], &[], &[], &tris, &info, &[], &[], &[], &[], &[]);
         view.alpha_masks = false;
         view.split = s.view();
         view.wide = whole.view();

@@ -69,9 +69,8 @@ pub struct ImageArgs {
     /// the same image bit for bit, in different times.
     #[arg(long, value_enum, default_value_t = Switch::On)]
     pub specialize: Switch,
-    /// The CPU's light subpaths for the connections (`--connect`): from a pool shared by all
-    /// pixels, each eye vertex picking among several (on), or one per sample, as the GPU traces
-    /// them (off: the image the GPU renders on lavapipe, bit for bit).
+    /// The light subpaths for the connections (`--connect`): from a pool shared by all pixels,
+    /// each eye vertex picking among several (on), or one per sample (off).
     #[arg(long, value_enum, default_value_t = Switch::On)]
     pub light_pool: Switch,
     /// Adaptive sampling to this relative RMS error of the image (per channel, over

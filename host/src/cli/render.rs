@@ -343,9 +343,6 @@ pub fn run(r: RenderArgs) -> Result<ExitCode> {
             dispatch: s.dispatch,
             aov: s.aov,
             features: {
-                // The CPU draws from the pool only where no GPU renders (`render::multi`); a GPU
-                // connects as `RenderSettings::on_gpu` says.
-                let s = if devices.any_gpu() { s.on_gpu() } else { s };
                 let mut f = features::analyse(c, &s);
                 // The CPU compiles one variant per set of the non-material bits and material mode.
                 if matches!(devices, Devices::One(Device::Cpu)) && s.specialize {

@@ -45,8 +45,6 @@ pub fn run(v: VerifyArgs) -> Result<ExitCode> {
             s.spp = DEFAULT_SPP;
         }
     }
-    // The GPU traces each sample's own light subpath for the connections: so does the CPU here.
-    s.light_pool = false;
     let cpu = run_device(Device::Cpu, c, &s, &v.image)?;
     let gpu = run_device(Device::Gpu, c, &s, &v.image)?;
     let a = compare(&cpu.image, &gpu.image);

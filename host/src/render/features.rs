@@ -52,9 +52,9 @@ pub struct Features {
     pub variant_bits: u32,
     /// Whether the CPU ran it sixteen samples at a time (`shared::lanes`).
     pub lanes: bool,
-    /// Whether the connections draw their light subpaths from the CPU's pool
-    /// (`render::light_pool`): they run and the settings ask for it (the GPU's, and the CPU's
-    /// beside one, do not: `RenderSettings::on_gpu`). `RenderParams::light_pool` is this.
+    /// Whether the connections draw their light subpaths from the pool shared by all pixels
+    /// (`shared::connection::LightPool`): they run and the settings ask for it
+    /// (`RenderSettings::light_pool`). `RenderParams::light_pool` is this.
     pub light_pool: bool,
 }
 
@@ -101,13 +101,13 @@ pub fn variant_bits(c: &Compiled, s: &RenderSettings) -> u32 {
     }
 }
 
-/// `Connect::Auto`, where each sample traces its own light subpath (the GPU, and the CPU with
-/// `RenderSettings::light_pool` off), connects where fewer of the camera's first hits than this
+/// `Connect::Auto`, where each sample traces its own light subpath (`RenderSettings::light_pool`
+/// off), connects where fewer of the camera's first hits than this
 /// see the point they sample on a light (`seen_light_share`). In the time-against-error
 /// benchmark those connections paid well where the light mostly arrives after a bounce (a room
 /// lit around a partition, Sponza's arcades) and cost about as much as they saved where most
 /// of what the camera sees is lit directly (the Cornell boxes); BENCHMARKS.md gives each
-/// scene's share and times. Drawn from the CPU's pool, the connections paid on every scene of
+/// scene's share and times. Drawn from the pool, the connections paid on every scene of
 /// the benchmark, so `auto` connects wherever the scene allows it.
 pub const AUTO_CONNECT_BELOW: f64 = 0.5;
 
@@ -229,7 +229,7 @@ pub fn analyse(c: &Compiled, s: &RenderSettings) -> Features {
     }
     // A setting, not a fact of the scene: on where asked for and the scene's other bits allow
     // it, for the radiance image with a bounce to connect; by default (`Connect::Auto`) wherever
-    // the connections draw from the CPU's pool, and otherwise only where the camera's first
+    // the connections draw from the pool, and otherwise only where the camera's first
     // hits mostly do not see the light.
     let allowed = s.aov == Aov::Radiance && s.max_bounces > 0 && connection_applies(bits);
     let seen_light = (allowed && s.connect == Connect::Auto && !s.light_pool).then(|| seen_light_share(c, s));
@@ -302,14 +302,14 @@ mod tests {
         // wall faces it edge-on and is not counted).
         let s = inside(DVec3::new(0.0, 0.0, 0.5), DVec3::new(0.0, 0.0, -1.0));
         assert_eq!(seen_light_share(&c, &s), 1.0);
-        // Drawn from the CPU's pool, the connections run wherever the scene allows them; each
-        // sample with its own light subpath (the GPU's), they do not run here.
+        // Drawn from the pool, the connections run wherever the scene allows them; each sample
+        // with its own light subpath (`--light-pool off`), they do not run here.
         let pooled = analyse(&c, &s);
         assert!(pooled.connect && pooled.bits & FEATURE_CONNECT != 0 && pooled.seen_light_share.is_none());
-        let own = analyse(&c, &s.on_gpu());
+        let s = RenderSettings { light_pool: false, ..s };
+        let own = analyse(&c, &s);
         assert!(!own.connect && own.bits & FEATURE_CONNECT == 0);
         assert_eq!(own.seen_light_share, Some(1.0));
-        let s = s.on_gpu();
         // `on` runs them all the same.
         let on = analyse(&c, &RenderSettings { connect: Connect::On, ..s });
         assert!(on.connect && on.bits & FEATURE_CONNECT != 0);
@@ -329,8 +329,8 @@ mod tests {
         assert_eq!((off.connect, off.seen_light_share), (false, None));
         let on = analyse(&c, &RenderSettings { connect: Connect::On, ..settings(3, Vec3::ZERO) });
         assert_eq!((on.bits, on.connect, on.seen_light_share), (off.bits | FEATURE_CONNECT, true, None));
-        assert_eq!((f.bits, f.connect, f.seen_light_share), (on.bits, true, None), "auto, the CPU's pool");
-        let own = analyse(&c, &settings(3, Vec3::ZERO).on_gpu());
+        assert_eq!((f.bits, f.connect, f.seen_light_share), (on.bits, true, None), "auto, with the pool");
+        let own = analyse(&c, &RenderSettings { light_pool: false, ..settings(3, Vec3::ZERO) });
         let share = own.seen_light_share.unwrap();
         assert_eq!(own.connect, share < AUTO_CONNECT_BELOW, "{share}");
         assert_eq!(own.bits, if own.connect { on.bits } else { off.bits });

@@ -1,11 +1,10 @@
 //! The pools of light subpaths the CPU's connections draw from (`shared::connection::LightPool`):
 //! `POOL_SLOTS` light subpaths for each block of `POOL_SAMPLES` samples, traced in parallel
-//! before the samples that use them. A slot's subpath depends only on the seed, its block and
+//! before the samples that use them (a GPU traces the same ones with `trace_pool`). A slot's subpath depends only on the seed, its block and
 //! its index, so a sample draws from the same pool in any pass structure (progressive,
 //! adaptive, two blocks at once, another process of a farm).
 use rayon::prelude::*;
-use shared::connection::{pool_record, LightPool, POOL_BLOCK, POOL_FIELDS, POOL_SAMPLES, POOL_SLOTS};
-use shared::features::{Variant, FEATURES_ALL};
+use shared::connection::{pool_index, pool_record, LightPool, POOL_BLOCK, POOL_FIELDS, POOL_SAMPLES, POOL_SLOTS};
 use shared::layout::RenderParams;
 use shared::scene::SceneView;
 
@@ -26,17 +25,16 @@ pub fn trace(scene: &SceneView, p: &RenderParams, start: u32, end: u32) -> (Vec<
     }
     let first = start / POOL_SAMPLES;
     let blocks = (end - 1) / POOL_SAMPLES + 1 - first;
-    let v = Variant::new(FEATURES_ALL, p);
     let slots = POOL_SLOTS as usize;
     let mut records = vec![0.0f32; blocks as usize * POOL_BLOCK];
     // Each block's records traced in parallel, then written field by field.
     records.par_chunks_mut(POOL_BLOCK).enumerate().for_each(|(block, out)| {
         let block = first + block as u32;
         let mut columns = vec![[0.0f32; POOL_FIELDS]; slots];
-        columns.par_iter_mut().enumerate().for_each(|(slot, r)| *r = pool_record(scene, p, v, block, slot as u32));
+        columns.par_iter_mut().enumerate().for_each(|(slot, r)| *r = pool_record(scene, p, block, slot as u32));
         for (slot, r) in columns.iter().enumerate() {
             for (f, &x) in r.iter().enumerate() {
-                out[f * slots + slot] = x;
+                out[pool_index(0, f, slot)] = x;
             }
         }
     });

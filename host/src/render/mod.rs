@@ -286,7 +286,6 @@ impl Compiled {
             live_count: 0,
             environment_map: self.environment_map,
             connect: u32::from(f.connect),
-            // The GPU's settings (`RenderSettings::on_gpu`) leave the pool off.
             light_pool: u32::from(f.light_pool),
             ..Default::default()
         })
@@ -345,6 +344,7 @@ impl Compiled {
             &self.lights,
             &self.scene.attributes,
             &self.textures,
+            &[],
         );
         view.alpha_masks = self.alpha_masks;
         if params.traversal == TRAVERSAL_WIDE_BVH {

@@ -119,9 +119,6 @@ pub fn render(
     // The CPU renders with a thread fewer per GPU: each GPU's thread records, submits and
     // waits for its dispatches, and a CPU busy on every core would leave it waiting.
     let gpu_count = gpus.iter().flatten().count();
-    // With a GPU beside it, the CPU traces each sample's own light subpath as the GPU does, so
-    // that the image is the one either device renders alone with `light_pool` off.
-    let s = &if gpu_count == 0 { *s } else { s.on_gpu() };
     let cpu_threads = rayon::current_num_threads().saturating_sub(gpu_count).max(1);
     let pool = rayon::ThreadPoolBuilder::new().num_threads(cpu_threads).build()?;
     let pixels = s.width as usize * s.height as usize;

@@ -233,12 +233,6 @@ impl RenderSettings {
         }
     }
 
-    /// These settings as a GPU renders them: its connections trace each sample's own light
-    /// subpath (`light_pool` off), which also decides `Connect::Auto`.
-    pub fn on_gpu(&self) -> Self {
-        Self { light_pool: false, ..*self }
-    }
-
     pub fn check(&self) -> Result<()> {
         if self.width == 0 || self.height == 0 || self.width > MAX_SIDE || self.height > MAX_SIDE {
             bail!("resolution {}x{} must be within 1..={MAX_SIDE} on each side", self.width, self.height);

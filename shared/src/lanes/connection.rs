@@ -245,8 +245,9 @@ pub(super) fn connect_pooled(
         if !ok.any() {
             continue;
         }
-        let cj = (beta * albedo * V3::new(field(9), field(10), field(11))).scale(link.term);
-        let wj = cj.x + cj.y + cj.z;
+        let bw = beta * albedo * V3::new(field(9), field(10), field(11));
+        let cj = bw.scale(link.term);
+        let wj = (bw.x + bw.y + bw.z) * link.term;
         let keep = ok & wj.simd_gt(zero) & wj.simd_lt(inf);
         c[j] = V3::select(keep, cj, V3::ZERO);
         w[j] = keep.select(wj, zero);

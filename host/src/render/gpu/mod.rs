@@ -3,7 +3,9 @@
 //! Each pass dispatches one invocation per pixel that adds a few samples to the pixel's running
 //! sum in a storage buffer, so progress can be reported between passes and no single dispatch
 //! runs long enough to trip a driver watchdog. The sums hold one block of samples at a time
-//! (`blocks`): cleared at a block's start, read back at its end into the host's fold.
+//! (`blocks`): cleared at a block's start, read back at its end into the host's fold. Where the
+//! connections draw from the pool of light subpaths, a dispatch of `trace_pool` first traces
+//! the pools of the blocks of samples the next dispatch draws from (`pool`).
 use crate::render::blocks::{Node, Sums, BLOCK_SAMPLES};
 use crate::render::progressive::{Blocks, Progressive, RunningSums};
 use crate::render::{Compiled, Progress, Rendered};
@@ -19,7 +21,9 @@ use std::collections::HashMap;
 use std::sync::Mutex;
 use wgpu::util::DeviceExt;
 
+mod pool;
 mod running;
+use pool::GpuPool;
 use running::GpuPasses;
 pub use running::GpuProgressive;
 pub(crate) use running::GpuSums;
@@ -29,6 +33,7 @@ const RENDER_ENTRY: &str = "render_pass";
 const CAST_ENTRY: &str = "cast_rays";
 const PERSISTENT_ENTRY: &str = "render_persistent";
 const LIST_ENTRY: &str = "render_list";
+const POOL_ENTRY: &str = "trace_pool";
 /// Workgroups of the persistent kernel: enough to fill a large GPU (132 SMs × 16 groups of 64
 /// on an H100 is about 2000), few enough that each takes many batches on smaller ones.
 const PERSISTENT_GROUPS: u32 = 2048;
@@ -49,6 +54,9 @@ const CPU_ADAPTER_SAMPLES_PER_PASS: u32 = 4;
 const CPU_ADAPTER_PERSISTENT_ROUNDS: u32 = 4;
 /// Adaptive sampling on a real GPU: at most this many samples per pixel and pass.
 const GPU_ADAPTIVE_PASS_SAMPLES: u32 = 16;
+/// Adaptive sampling: the pools of at most this many blocks at once (about 14 MB); a pass whose
+/// pixels' samples span more blocks takes a dispatch per window of this many.
+const ADAPTIVE_POOL_BLOCKS: u32 = 64;
 
 pub struct Gpu {
     device: wgpu::Device,
@@ -210,6 +218,9 @@ impl Gpu {
             }
         };
         self.pipeline(entry, variant(c, s))?;
+        if c.params(s, 0, 0)?.light_pool != 0 {
+            self.pipeline(POOL_ENTRY, Variant::GENERIC_SPEC)?;
+        }
         Ok(())
     }
 
@@ -328,6 +339,7 @@ impl Gpu {
         queue: &wgpu::Buffer,
         accum_sq: &wgpu::Buffer,
         live: &wgpu::Buffer,
+        pool: &wgpu::Buffer,
     ) -> wgpu::BindGroup {
         let buffers = [
             (binding::PARAMS, &s.params),
@@ -347,6 +359,7 @@ impl Gpu {
             (binding::LIVE, live),
             (binding::ATTRIBUTES, &s.attributes),
             (binding::TEXTURES, &s.textures),
+            (binding::POOL, pool),
         ];
         debug_assert_eq!(buffers.len() as u32, binding::COUNT);
         let entries: Vec<wgpu::BindGroupEntry> = buffers
@@ -375,8 +388,8 @@ impl Gpu {
     }
 
     /// The scene uploaded and the image's buffers created and bound, for a render of `s` (its
-    /// traversal resolved).
-    fn allocate(&self, c: &Compiled, s: &RenderSettings) -> Result<ImageBuffers> {
+    /// traversal resolved) that draws from pools of `pool_blocks` blocks at once (0: none).
+    fn allocate(&self, c: &Compiled, s: &RenderSettings, pool_blocks: u32) -> Result<ImageBuffers> {
         let pixels = s.width as u64 * s.height as u64;
         self.check_size("image", pixels as usize * 16)?;
         let scene = self.upload_scene(c)?;
@@ -392,17 +405,20 @@ impl Gpu {
             mapped_at_creation: false,
         });
         let live = self.output("live pixels", if s.adaptive.is_some() { pixels * 16 } else { 0 });
-        let group = self.bind(&scene, &accum, &primary, &rays, &results, &work, &accum_sq, &live);
-        Ok(ImageBuffers { scene, accum, accum_sq, primary, work, live, group, pixels, accum_bytes })
+        let pool = GpuPool::new(self, pool_blocks)?;
+        let group = self.bind(&scene, &accum, &primary, &rays, &results, &work, &accum_sq, &live, &pool.buffer);
+        Ok(ImageBuffers { scene, accum, accum_sq, primary, work, live, pool, group, pixels, accum_bytes })
     }
 
     pub fn render(&self, c: &Compiled, s: &RenderSettings, progress: Progress) -> Result<Rendered> {
         s.check()?;
-        let s = &RenderSettings { traversal: s.traversal.for_adapter(self.is_cpu())?, ..s.on_gpu() };
+        let s = &RenderSettings { traversal: s.traversal.for_adapter(self.is_cpu())?, ..*s };
         if let Some(a) = s.adaptive {
-            let b = self.allocate(c, s)?;
             let mut params = c.params(s, 0, 0)?;
             params.persistent_rounds = 0;
+            let pool_blocks =
+                if params.light_pool != 0 { GpuPool::blocks_for(s.spp).min(ADAPTIVE_POOL_BLOCKS) } else { 0 };
+            let mut b = self.allocate(c, s, pool_blocks)?;
             let mut dev = GpuPasses {
                 gpu: self,
                 pipeline: self.pipeline(LIST_ENTRY, variant(c, s))?,
@@ -410,6 +426,7 @@ impl Gpu {
                 params,
                 params_buffer: &b.scene.params,
                 live: &b.live,
+                pool: &mut b.pool,
                 accum: &b.accum,
                 bytes: b.accum_bytes,
             };
@@ -461,9 +478,8 @@ impl Gpu {
         if s.adaptive.is_some() {
             bail!("a progressive render adds the same samples to every pixel: adaptive sampling does not apply");
         }
-        let s = RenderSettings { traversal: s.traversal.for_adapter(self.is_cpu())?, ..s.on_gpu() };
-        let buffers = self.allocate(c, &s)?;
-        let pixels = buffers.pixels;
+        let s = RenderSettings { traversal: s.traversal.for_adapter(self.is_cpu())?, ..*s };
+        let pixels = s.width as u64 * s.height as u64;
         // Work per invocation and dispatch, bounded on CPU adapters (see `CPU_ADAPTER_*`).
         let cpu_adapter = self.is_cpu();
         let batches = pixels.div_ceil(PERSISTENT_GROUP as u64) as u32;
@@ -484,6 +500,8 @@ impl Gpu {
         let per_dispatch =
             ((PATHS_PER_PASS / pixels.max(1)) as u32).clamp(1, s.spp.min(max_per_pass).min(BLOCK_SAMPLES));
         let params = c.params(&s, 0, 0)?;
+        let pool_blocks = if params.light_pool != 0 { GpuPool::blocks_for(per_dispatch) } else { 0 };
+        let buffers = self.allocate(c, &s, pool_blocks)?;
         Ok(GpuSums { gpu: self, s, params, buffers, pipeline, per_dispatch, rounds, persistent_groups })
     }
 
@@ -506,14 +524,15 @@ impl Gpu {
         let result_bytes = std::mem::size_of_val(rays) as u64 / std::mem::size_of::<RayQuery>() as u64
             * std::mem::size_of::<RayResult>() as u64;
         let results = self.output("results", result_bytes);
-        let (accum, primary, work, accum_sq, live) = (
+        let (accum, primary, work, accum_sq, live, pool) = (
             self.output("accum (unused)", 0),
             self.output("primary (unused)", 0),
             self.output("work queue (unused)", 0),
             self.output("accum squares (unused)", 0),
             self.output("live pixels (unused)", 0),
+            self.output("light subpath pool (unused)", 0),
         );
-        let group = self.bind(&scene, &accum, &primary, &ray_buffer, &results, &work, &accum_sq, &live);
+        let group = self.bind(&scene, &accum, &primary, &ray_buffer, &results, &work, &accum_sq, &live, &pool);
         let groups = rays.len().div_ceil(CAST_GROUP as usize);
         if groups > MAX_GROUPS_X as usize {
             bail!("{} rays in one batch: at most {} are supported", rays.len(), MAX_GROUPS_X * CAST_GROUP);
@@ -563,6 +582,8 @@ struct ImageBuffers {
     work: wgpu::Buffer,
     /// Adaptive sampling's list of pixels (a placeholder otherwise).
     live: wgpu::Buffer,
+    /// The pools of light subpaths the samples draw from (a placeholder without them).
+    pool: GpuPool,
     group: wgpu::BindGroup,
     pixels: u64,
     accum_bytes: u64,
@@ -573,11 +594,7 @@ struct ImageBuffers {
 /// generic code) when specialisation is off.
 pub fn variant(c: &Compiled, s: &RenderSettings) -> Variant {
     if s.specialize {
-        Variant {
-            features: super::features::variant_bits(c, &s.on_gpu()),
-            max_bounces: s.max_bounces,
-            rr_start: s.rr_start,
-        }
+        Variant { features: super::features::variant_bits(c, s), max_bounces: s.max_bounces, rr_start: s.rr_start }
     } else {
         Variant::GENERIC_SPEC
     }
@@ -586,7 +603,7 @@ pub fn variant(c: &Compiled, s: &RenderSettings) -> Variant {
 #[cfg(test)]
 mod tests {
     use shared::features::Variant;
-    use shared::layout::{binding, CAST_GROUP, LIST_GROUP, PERSISTENT_GROUP, RENDER_GROUP_SIDE};
+    use shared::layout::{binding, CAST_GROUP, LIST_GROUP, PERSISTENT_GROUP, POOL_GROUP, RENDER_GROUP_SIDE};
 
     /// The kernel's source, whose `#[spirv(...)]` attributes take literals only.
     const KERNEL: &str = include_str!("../../../../kernel/src/lib.rs");
@@ -610,6 +627,7 @@ mod tests {
             "live" => binding::LIVE,
             "attributes" => binding::ATTRIBUTES,
             "textures" => binding::TEXTURES,
+            "pool" => binding::POOL,
             other => panic!("kernel parameter {other:?} is not in shared::layout::binding"),
         }
     }
@@ -626,7 +644,7 @@ mod tests {
             assert!(number < binding::COUNT);
             seen += 1;
         }
-        assert!(seen >= 4 * 10, "expected the four entry points' bindings, found {seen}");
+        assert!(seen >= 5 * 10, "expected the five entry points' bindings, found {seen}");
         // Workgroup sizes: each entry point's `threads(...)` and the layout's constants.
         let threads = |entry: &str| {
             let at = KERNEL.find(&format!("pub fn {entry}(")).unwrap();
@@ -640,6 +658,7 @@ mod tests {
         assert_eq!(threads("render_persistent"), [PERSISTENT_GROUP, 1, 1]);
         assert_eq!(threads("cast_rays"), [CAST_GROUP, 1, 1]);
         assert_eq!(threads("render_list"), [LIST_GROUP, 1, 1]);
+        assert_eq!(threads("trace_pool"), [POOL_GROUP, 1, 1]);
     }
 
     #[test]

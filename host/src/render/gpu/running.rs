@@ -2,6 +2,7 @@
 //! shared block driver `progressive::Blocks`), the progressive render built on them
 //! (`GpuProgressive`) and adaptive sampling's passes (`GpuPasses`).
 use super::*;
+use shared::connection::POOL_SAMPLES;
 
 /// One block's running sums on a GPU (`Gpu::sums`): the scene and the sums on the device, each
 /// addition one or more dispatches.
@@ -33,13 +34,24 @@ impl RunningSums for GpuSums<'_> {
     }
 
     fn add(&mut self, start: u32, count: u32) -> Result<()> {
-        let (g, s, b) = (self.gpu, &self.s, &self.buffers);
+        let (g, s, b) = (self.gpu, &self.s, &mut self.buffers);
         let end = start + count;
         let mut at = start;
         while at < end {
             let count = self.per_dispatch.min(end - at);
-            let params =
-                RenderParams { sample_start: at, sample_count: count, persistent_rounds: self.rounds, ..self.params };
+            let pool_first_block = if self.params.light_pool != 0 {
+                let (first, blocks) = GpuPool::span(at, at + count);
+                b.pool.hold(g, &b.group, &b.scene.params, &self.params, first, blocks)?
+            } else {
+                0
+            };
+            let params = RenderParams {
+                sample_start: at,
+                sample_count: count,
+                persistent_rounds: self.rounds,
+                pool_first_block,
+                ..self.params
+            };
             g.queue.write_buffer(&b.scene.params, 0, bytemuck::bytes_of(&params));
             match s.dispatch {
                 Dispatch::Plain => g.dispatch(
@@ -133,8 +145,22 @@ pub(super) struct GpuPasses<'a> {
     pub(super) params: RenderParams,
     pub(super) params_buffer: &'a wgpu::Buffer,
     pub(super) live: &'a wgpu::Buffer,
+    pub(super) pool: &'a mut GpuPool,
     pub(super) accum: &'a wgpu::Buffer,
     pub(super) bytes: u64,
+}
+
+impl GpuPasses<'_> {
+    /// Dispatches `render_list` over pixel `x`'s samples `y .. y + z` for each entry of `list`.
+    fn dispatch(&mut self, list: &[[u32; 4]], pool_first_block: u32) -> Result<()> {
+        let g = self.gpu;
+        g.queue.write_buffer(self.live, 0, bytemuck::cast_slice(list));
+        let params = RenderParams { live_count: list.len() as u32, pool_first_block, ..self.params };
+        g.queue.write_buffer(self.params_buffer, 0, bytemuck::bytes_of(&params));
+        let groups = (list.len() as u32).div_ceil(LIST_GROUP);
+        let x = groups.min(MAX_GROUPS_X);
+        g.dispatch(&self.pipeline, self.group, (x, groups.div_ceil(x)))
+    }
 }
 
 impl crate::render::adaptive::Passes for GpuPasses<'_> {
@@ -148,13 +174,35 @@ impl crate::render::adaptive::Passes for GpuPasses<'_> {
         if list.is_empty() {
             return Ok(());
         }
-        let g = self.gpu;
-        g.queue.write_buffer(self.live, 0, bytemuck::cast_slice(&list));
-        self.params.live_count = list.len() as u32;
-        g.queue.write_buffer(self.params_buffer, 0, bytemuck::bytes_of(&self.params));
-        let groups = (list.len() as u32).div_ceil(LIST_GROUP);
-        let x = groups.min(MAX_GROUPS_X);
-        g.dispatch(&self.pipeline, self.group, (x, groups.div_ceil(x)))
+        if self.params.light_pool == 0 {
+            return self.dispatch(&list, 0);
+        }
+        // The samples' pools in windows of blocks the pool buffer holds, each window a dispatch
+        // of the pixels' samples in it: a pixel's samples still add up in order.
+        let (start, end) = list.iter().fold((u32::MAX, 0), |(lo, hi), e| (lo.min(e[1]), hi.max(e[1] + e[2])));
+        let (first, blocks) = GpuPool::span(start, end);
+        let window = self.pool.capacity();
+        for w in (first..first + blocks).step_by(window as usize) {
+            let (lo, hi) = (w * POOL_SAMPLES, (w + window) * POOL_SAMPLES);
+            let part: Vec<[u32; 4]> = list
+                .iter()
+                .filter(|e| e[1] < hi && e[1] + e[2] > lo)
+                .map(|e| {
+                    let (a, b) = (e[1].max(lo), (e[1] + e[2]).min(hi));
+                    [e[0], a, b - a, 0]
+                })
+                .collect();
+            if part.is_empty() {
+                continue;
+            }
+            let (at, n) = GpuPool::span(
+                part.iter().map(|e| e[1]).min().unwrap(),
+                part.iter().map(|e| e[1] + e[2]).max().unwrap(),
+            );
+            let held = self.pool.hold(self.gpu, self.group, self.params_buffer, &self.params, at, n)?;
+            self.dispatch(&part, held)?;
+        }
+        Ok(())
     }
 
     fn max_per_pass(&self) -> u32 {

@@ -50,6 +50,12 @@ pub trait Passes {
     fn sums(&mut self) -> Result<Vec<Vec4>>;
 }
 
+/// The samples `[lo, hi)` that the non-empty `[start, count]` ranges of a pass cover (`(u32::MAX,
+/// 0)` where all are empty).
+pub fn sample_span(ranges: impl IntoIterator<Item = [u32; 2]>) -> (u32, u32) {
+    ranges.into_iter().filter(|r| r[1] > 0).fold((u32::MAX, 0), |(lo, hi), r| (lo.min(r[0]), hi.max(r[0] + r[1])))
+}
+
 /// What an adaptive render leaves: per pixel the samples its sums hold.
 pub struct Outcome {
     pub counts: Vec<u32>,

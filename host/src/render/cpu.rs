@@ -626,8 +626,7 @@ struct CpuPasses<'a> {
 impl adaptive::Passes for CpuPasses<'_> {
     fn pass(&mut self, ranges: &[[u32; 2]]) -> Result<()> {
         let (w, params, f) = (self.width, &self.params, self.render_samples);
-        let (start, end) =
-            ranges.iter().filter(|r| r[1] > 0).fold((u32::MAX, 0), |(lo, hi), r| (lo.min(r[0]), hi.max(r[0] + r[1])));
+        let (start, end) = adaptive::sample_span(ranges.iter().copied());
         let (pool, first) = light_pool::pool_of(&self.scene, params, start, end);
         let scene = &light_pool::view(&self.scene, &pool, first);
         self.sum

@@ -30,12 +30,6 @@ impl GpuPool {
         count.div_ceil(POOL_SAMPLES) + 1
     }
 
-    /// The blocks that samples `[start, end)` draw from: the first and how many.
-    pub(super) fn span(start: u32, end: u32) -> (u32, u32) {
-        let first = start / POOL_SAMPLES;
-        (first, (end - 1) / POOL_SAMPLES + 1 - first)
-    }
-
     /// Blocks the buffer has room for.
     pub(super) fn capacity(&self) -> u32 {
         self.capacity

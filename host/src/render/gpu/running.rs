@@ -2,6 +2,8 @@
 //! shared block driver `progressive::Blocks`), the progressive render built on them
 //! (`GpuProgressive`) and adaptive sampling's passes (`GpuPasses`).
 use super::*;
+use crate::render::adaptive::sample_span;
+use crate::render::light_pool;
 use shared::connection::POOL_SAMPLES;
 
 /// One block's running sums on a GPU (`Gpu::sums`): the scene and the sums on the device, each
@@ -40,7 +42,7 @@ impl RunningSums for GpuSums<'_> {
         while at < end {
             let count = self.per_dispatch.min(end - at);
             let pool_first_block = if self.params.light_pool != 0 {
-                let (first, blocks) = GpuPool::span(at, at + count);
+                let (first, blocks) = light_pool::span(at, at + count);
                 b.pool.hold(g, &b.group, &b.scene.params, &self.params, first, blocks)?
             } else {
                 0
@@ -179,8 +181,9 @@ impl crate::render::adaptive::Passes for GpuPasses<'_> {
         }
         // The samples' pools in windows of blocks the pool buffer holds, each window a dispatch
         // of the pixels' samples in it: a pixel's samples still add up in order.
-        let (start, end) = list.iter().fold((u32::MAX, 0), |(lo, hi), e| (lo.min(e[1]), hi.max(e[1] + e[2])));
-        let (first, blocks) = GpuPool::span(start, end);
+        let samples = |list: &[[u32; 4]]| sample_span(list.iter().map(|e| [e[1], e[2]]));
+        let (start, end) = samples(&list);
+        let (first, blocks) = light_pool::span(start, end);
         let window = self.pool.capacity();
         for w in (first..first + blocks).step_by(window as usize) {
             let (lo, hi) = (w * POOL_SAMPLES, (w + window) * POOL_SAMPLES);
@@ -195,10 +198,8 @@ impl crate::render::adaptive::Passes for GpuPasses<'_> {
             if part.is_empty() {
                 continue;
             }
-            let (at, n) = GpuPool::span(
-                part.iter().map(|e| e[1]).min().unwrap(),
-                part.iter().map(|e| e[1] + e[2]).max().unwrap(),
-            );
+            let (part_start, part_end) = samples(&part);
+            let (at, n) = light_pool::span(part_start, part_end);
             let held = self.pool.hold(self.gpu, self.group, self.params_buffer, &self.params, at, n)?;
             self.dispatch(&part, held)?;
         }

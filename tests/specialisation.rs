@@ -170,11 +170,13 @@ fn same(a: &Rendered, b: &Rendered) -> bool {
     bits(&a.sum) == bits(&b.sum) && bits(&a.sum_sq) == bits(&b.sum_sq) && a.primary == b.primary
 }
 
-#[test]
-fn every_variant_renders_the_generic_image() {
+/// A scene, its settings and the feature set that analysis must find for it.
+type Case = (&'static str, Compiled, RenderSettings, u32);
+
+fn cases() -> Vec<Case> {
     let outside = (DVec3::new(0.0, 2.5, 5.0), DVec3::new(0.0, 0.5, 0.0));
     let box_view = (DVec3::new(0.0, 1.0, 3.4), DVec3::new(0.0, 1.0, 0.0));
-    let cases: Vec<(&str, Compiled, RenderSettings, u32)> = vec![
+    vec![
         (
             "Cornell box",
             cornell(1.0),
@@ -308,12 +310,18 @@ fn every_variant_renders_the_generic_image() {
             settings(outside.0, outside.1, 0.3, 4),
             FEATURE_EMITTERS | FEATURE_ENVIRONMENT | FEATURE_DIFFUSE | FEATURE_PRINCIPLED | FEATURE_INDIRECT,
         ),
-    ];
-    // Every bit is left out somewhere.
-    let covered = cases.iter().fold(0, |acc, c| acc | (FEATURES_ALL & !c.3));
-    assert_eq!(covered, FEATURES_ALL, "some feature is never left out");
+    ]
+}
+
+/// The cases are checked in `PARTS` tests, so that the test harness compiles lavapipe's
+/// pipelines for several of them at once.
+const PARTS: usize = 4;
+
+/// Every `PARTS`-th case from `part`: the CPU's variant against its generic code, and lavapipe's
+/// specialised and generic pipelines against the CPU.
+fn check_part(part: usize) {
     let g = gpu::Gpu::lavapipe().unwrap();
-    for (name, c, s, bits) in &cases {
+    for (name, c, s, bits) in cases().iter().skip(part).step_by(PARTS) {
         assert_eq!(features::analyse(c, s).bits, *bits, "{name}: feature set");
         let generic = RenderSettings { specialize: false, ..*s };
         let cpu_special = cpu::render(c, s, &no_progress).unwrap();
@@ -335,7 +343,35 @@ fn every_variant_renders_the_generic_image() {
             );
         }
     }
-    // The scenes with light are not black, and the one without is.
+}
+
+#[test]
+fn variants_render_the_generic_image_part_1() {
+    check_part(0);
+}
+
+#[test]
+fn variants_render_the_generic_image_part_2() {
+    check_part(1);
+}
+
+#[test]
+fn variants_render_the_generic_image_part_3() {
+    check_part(2);
+}
+
+#[test]
+fn variants_render_the_generic_image_part_4() {
+    check_part(3);
+}
+
+/// The cases leave out every bit between them; the scenes with light are not black, and the one
+/// without is.
+#[test]
+fn the_cases_cover_every_feature() {
+    let cases = cases();
+    let covered = cases.iter().fold(0, |acc, c| acc | (FEATURES_ALL & !c.3));
+    assert_eq!(covered, FEATURES_ALL, "some feature is never left out");
     let lit = |i: usize| cpu::render(&cases[i].1, &cases[i].2, &no_progress).unwrap().sum.iter().any(|p| p.x > 0.0);
     assert!((0..cases.len()).filter(|&i| i != 2 && i != 7).all(lit));
     assert!(!lit(7));

@@ -79,7 +79,7 @@ pub const POOL_BLOCK: usize = POOL_FIELDS * POOL_SLOTS as usize;
 /// Seeds the pool's hash apart from the pixels' samplers.
 const POOL_SEED: u32 = 0x7f4a_7c15;
 /// Bits of a window's index in its block (`pool_window`).
-const POOL_WINDOW_BITS: u32 = (POOL_SLOTS / POOL_STRIDE).trailing_zeros();
+pub const POOL_WINDOW_BITS: u32 = (POOL_SLOTS / POOL_STRIDE).trailing_zeros();
 
 /// The light subpaths of blocks `first_block ..` (`POOL_BLOCK` floats a block, `pool_index`),
 /// shared by every pixel's samples in those blocks.
@@ -128,16 +128,24 @@ pub fn pool_record(scene: &SceneView, p: &RenderParams, block: u32, slot: u32) -
 /// (`pool_record`).
 #[inline(always)]
 pub fn pool_buffer_record(scene: &SceneView, p: &RenderParams, index: u32) -> [f32; POOL_FIELDS] {
-    pool_record(scene, p, p.pool_first_block + index / POOL_SLOTS, index % POOL_SLOTS)
+    let (block, slot) = pool_block_slot(index);
+    pool_record(scene, p, p.pool_first_block + block, slot)
+}
+
+/// The block (counted from the buffer's first) and the slot of light subpath `index` of a pool
+/// buffer.
+#[inline(always)]
+fn pool_block_slot(index: u32) -> (u32, u32) {
+    (index / POOL_SLOTS, index % POOL_SLOTS)
 }
 
 /// Stores record `r` of light subpath `index` (`pool_buffer_record`) field by field in `pool`.
 #[inline(always)]
 pub fn store_pool_record(pool: &mut [f32], index: u32, r: &[f32; POOL_FIELDS]) {
-    let (block, slot) = ((index / POOL_SLOTS) as usize, (index % POOL_SLOTS) as usize);
+    let (block, slot) = pool_block_slot(index);
     let mut f = 0;
     while f < POOL_FIELDS {
-        pool[pool_index(block, f, slot)] = r[f];
+        pool[pool_index(block as usize, f, slot as usize)] = r[f];
         f += 1;
     }
 }

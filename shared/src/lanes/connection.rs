@@ -5,7 +5,8 @@ use super::sampler::LaneSampler;
 use super::warp::{cosine_hemisphere, offset_ray_origin, orthonormal_basis, power_heuristic3, weights};
 use super::{sqrt, F, LANES, M, U, V3};
 use crate::connection::{
-    CONNECT_TAG, POOL_BLOCK, POOL_CANDIDATES, POOL_PICK_TAG, POOL_SAMPLES, POOL_SLOTS, POOL_STRIDE, POOL_WINDOW_TAG,
+    CONNECT_TAG, POOL_BLOCK, POOL_CANDIDATES, POOL_FIELDS, POOL_PICK_TAG, POOL_SAMPLES, POOL_SLOTS, POOL_STRIDE,
+    POOL_WINDOW_BITS, POOL_WINDOW_TAG,
 };
 use crate::layout::{RenderParams, LIGHT_NOT_TRIANGLE, NO_HIT};
 use crate::sampling::INV_PI;
@@ -180,6 +181,11 @@ pub(super) fn connect(
     *radiance = V3::select(open, *radiance + added, *radiance);
 }
 
+/// Rows of `POOL_STRIDE` slots in one field of a block.
+const BLOCK_ROWS: usize = (POOL_SLOTS / POOL_STRIDE) as usize;
+/// Rows in a group's two blocks.
+const GROUP_ROWS: usize = 2 * POOL_FIELDS * BLOCK_ROWS;
+
 /// `crate::connection::connect_pooled` for sixteen eye vertices: each lane weighs its own
 /// candidates from its own block's pool, picks one and casts its shadow ray; the same sums bit
 /// for bit. Sixteen samples that make one group of `POOL_STRIDE` read a field of their
@@ -221,14 +227,20 @@ pub(super) fn connect_pooled(
         let i = (base + U::splat((f * POOL_SLOTS as usize) as u32) + at).cast::<usize>();
         F::gather_select(records, enable, i, zero)
     };
-    // Field `f` of the group's candidates `j`: row `row` of the window in both blocks.
-    let (lo, hi) = (base[0] as usize, base[LANES - 1] as usize + LANES / 2);
-    let rows = |row: usize, f: usize| {
-        let at = f * POOL_SLOTS as usize + row;
-        let mut v = [0.0f32; LANES];
-        v[..LANES / 2].copy_from_slice(&records[lo + at..lo + at + LANES / 2]);
-        v[LANES / 2..].copy_from_slice(&records[hi + at..hi + at + LANES / 2]);
-        F::from_array(v)
+    // The group's two blocks (samples `16k ..` and `16k + 8 ..` are consecutive blocks) as rows
+    // of `POOL_STRIDE` slots, a fixed length, so that reading a row needs no bounds check.
+    let group: Option<&[[f32; LANES]; GROUP_ROWS]> = if grouped {
+        let lo = base[0] as usize;
+        records.get(lo..lo + 2 * POOL_BLOCK).and_then(|r| r.as_chunks::<LANES>().0.try_into().ok())
+    } else {
+        None
+    };
+    // Field `f` of the group's candidates in row `row` of the window: the first block's slots for
+    // lanes 0..8, the second's for lanes 8..16.
+    let second = M::from_array(core::array::from_fn(|i| i >= LANES / 2));
+    let rows = |rows: &[[f32; LANES]; GROUP_ROWS], row: usize, f: usize| {
+        let at = f * BLOCK_ROWS + (row / LANES) % BLOCK_ROWS;
+        second.select(F::from_array(rows[POOL_FIELDS * BLOCK_ROWS + at]), F::from_array(rows[at]))
     };
     let mut c = [V3::ZERO; POOL_CANDIDATES];
     let mut w = [zero; POOL_CANDIDATES];
@@ -237,7 +249,10 @@ pub(super) fn connect_pooled(
     for j in 0..POOL_CANDIDATES {
         let row = (window + U::splat(POOL_STRIDE * j as u32)) & U::splat(POOL_SLOTS - 1);
         let (row0, at) = (row[0] as usize, row + lane);
-        let field = |f: usize| if grouped { rows(row0, f) } else { gathered(at, f) };
+        let field = |f: usize| match group {
+            Some(g) => rows(g, row0, f),
+            None => gathered(at, f),
+        };
         let y = V3::new(field(0), field(1), field(2));
         let ny = V3::new(field(3), field(4), field(5));
         let link = PooledLink::new(pos, nf, y, ny, field(6), field(7), field(8));
@@ -258,23 +273,22 @@ pub(super) fn connect_pooled(
     if !go.any() {
         return;
     }
-    // The pick, lane by lane as `connect_pooled` walks the candidates.
+    // The pick, lane by lane as `connect_pooled` walks the candidates. Subtracting a weight of
+    // zero leaves `pick` as it is, and its value after the stop is not read, so the one chain
+    // that runs from candidate to candidate is the subtraction.
     let mut pick = u * sum;
     let mut y = U::splat(0);
-    let mut found = M::splat(false);
-    for (j, &wj) in w.iter().enumerate() {
-        let cand = !found & wj.simd_gt(zero);
-        y = cand.select(U::splat(j as u32), y);
-        let stop = cand & pick.simd_lt(wj);
-        found |= stop;
-        pick = (cand & !stop).select(pick - wj, pick);
-    }
     let (mut cy, mut wy, mut by) = (V3::ZERO, F::splat(1.0), M::splat(false));
+    let mut found = M::splat(false);
     for j in 0..POOL_CANDIDATES {
-        let m = y.simd_eq(U::splat(j as u32));
-        cy = V3::select(m, c[j], cy);
-        wy = m.select(w[j], wy);
-        by = m.select(behind[j], by);
+        let wj = w[j];
+        let take = !found & wj.simd_gt(zero);
+        y = take.select(U::splat(j as u32), y);
+        cy = V3::select(take, c[j], cy);
+        wy = take.select(wj, wy);
+        by = take.select(behind[j], by);
+        found |= take & pick.simd_lt(wj);
+        pick -= wj;
     }
     let at = ((window + U::splat(POOL_STRIDE) * y) & U::splat(POOL_SLOTS - 1)) + lane;
     let field = |f: usize| gathered(at, f);
@@ -289,5 +303,5 @@ pub(super) fn connect_pooled(
 /// `crate::connection::pool_window` lane by lane.
 #[inline(always)]
 fn pool_windows(bits: U) -> U {
-    (bits >> U::splat(32 - (POOL_SLOTS / POOL_STRIDE).trailing_zeros())) * U::splat(POOL_STRIDE)
+    (bits >> U::splat(32 - POOL_WINDOW_BITS)) * U::splat(POOL_STRIDE)
 }

@@ -216,19 +216,19 @@ pub(super) fn connect_pooled(
     let sample = rng.sample();
     let lane = sample % U::splat(POOL_STRIDE);
     let base = (sample / U::splat(POOL_SAMPLES) - U::splat(scene.light_pool.first_block)) * U::splat(POOL_BLOCK as u32);
-    // One group whose two blocks are both in the pool: lane `i` holds sample `16k + i`.
+    // One group: lane `i` holds sample `16k + i`.
     let s0 = sample[0];
-    let grouped = s0.is_multiple_of(POOL_STRIDE)
-        & (sample == U::splat(s0) + U::from_array(core::array::from_fn(|i| i as u32)))
-        & (base[LANES - 1] as usize + POOL_BLOCK <= records.len());
+    let grouped =
+        s0.is_multiple_of(POOL_STRIDE) & (sample == U::splat(s0) + U::from_array(core::array::from_fn(|i| i as u32)));
     let enable = live.cast::<isize>();
     // Field `f` of each lane's candidate in slot `at` (the window's row plus the lane).
     let gathered = |at: U, f: usize| {
         let i = (base + U::splat((f * POOL_SLOTS as usize) as u32) + at).cast::<usize>();
         F::gather_select(records, enable, i, zero)
     };
-    // The group's two blocks (samples `16k ..` and `16k + 8 ..` are consecutive blocks) as rows
-    // of `POOL_STRIDE` slots, a fixed length, so that reading a row needs no bounds check.
+    // The group's two blocks (samples `16k ..` and `16k + 8 ..` are consecutive blocks), where
+    // both are in the pool, as rows of `POOL_STRIDE` slots, a fixed length, so that reading a
+    // row needs no bounds check.
     let group: Option<&[[f32; LANES]; GROUP_ROWS]> = if grouped {
         let lo = base[0] as usize;
         records.get(lo..lo + 2 * POOL_BLOCK).and_then(|r| r.as_chunks::<LANES>().0.try_into().ok())

@@ -5,7 +5,9 @@
 //! pool in any pass structure (progressive, adaptive, two blocks at once, another process of a
 //! farm).
 use rayon::prelude::*;
-use shared::connection::{pool_index, pool_record, LightPool, POOL_BLOCK, POOL_FIELDS, POOL_SAMPLES, POOL_SLOTS};
+use shared::connection::{
+    pool_record, store_pool_record, LightPool, POOL_BLOCK, POOL_FIELDS, POOL_SAMPLES, POOL_SLOTS,
+};
 use shared::layout::RenderParams;
 use shared::scene::SceneView;
 
@@ -33,15 +35,14 @@ pub fn trace(scene: &SceneView, p: &RenderParams, start: u32, end: u32) -> (Vec<
     let (first, blocks) = span(start, end);
     let slots = POOL_SLOTS as usize;
     let mut records = vec![0.0f32; blocks as usize * POOL_BLOCK];
-    // Each block's records traced in parallel, then written field by field.
+    // Each block's records traced in parallel, then written field by field as the GPU's
+    // `trace_pool` stores them (slot `slot` of a one-block buffer).
     records.par_chunks_mut(POOL_BLOCK).enumerate().for_each(|(block, out)| {
         let block = first + block as u32;
         let mut columns = vec![[0.0f32; POOL_FIELDS]; slots];
         columns.par_iter_mut().enumerate().for_each(|(slot, r)| *r = pool_record(scene, p, block, slot as u32));
         for (slot, r) in columns.iter().enumerate() {
-            for (f, &x) in r.iter().enumerate() {
-                out[pool_index(0, f, slot)] = x;
-            }
+            store_pool_record(out, slot as u32, r);
         }
     });
     (records, first)

@@ -76,7 +76,7 @@ fn expected_rel_mse(r: &Rendered) -> f64 {
     sum / (mean.len() * 3) as f64
 }
 
-/// Each eye vertex picking among `POOL_CANDIDATES` light vertices of the pool, by their
+/// Each eye vertex picking among `pool_candidates` light vertices of the pool, by their
 /// unshadowed contributions, lowers the noise against one light subpath of its own, for the
 /// same shadow rays.
 #[test]

@@ -15,7 +15,8 @@
 //! sample's own but drawn from a pool that all pixels share (`LightPool`): `POOL_SLOTS` of
 //! them are traced for every block of `POOL_SAMPLES` samples before those samples run (on the
 //! CPU by the host, on a GPU by the `trace_pool` entry point, both through `pool_record`),
-//! and each eye vertex weighs `POOL_CANDIDATES` of them from a random window by their
+//! and each eye vertex weighs up to `POOL_CANDIDATES` of them (`pool_candidates`, fewer at
+//! deeper vertices) from a random window by their
 //! unshadowed contributions, picks one in proportion and traces one shadow ray to it
 //! (resampled importance sampling: Talbot et al. 2005; the pool of light vertices: Davidovič et
 //! al. 2014, "Progressive light transport simulation on the GPU", the light vertex cache). The
@@ -66,7 +67,8 @@ pub const POOL_STRIDE: u32 = 16;
 pub const POOL_SAMPLES: u32 = 8;
 /// Light subpaths in a block's pool (a power of two).
 pub const POOL_SLOTS: u32 = 4096;
-/// Light vertices an eye vertex weighs before it picks one.
+/// Light vertices an eye vertex weighs before it picks one, at most (`pool_candidates`): the
+/// rows of a window.
 pub const POOL_CANDIDATES: usize = 32;
 /// The factor on the pooled connection's density in the multiple-importance weights.
 pub const POOL_WEIGHT: f32 = 16.0;
@@ -443,7 +445,7 @@ pub fn connect<R: Recorder>(
 }
 
 /// The pooled connection at an eye vertex (Lambertian, flat normal `nf` toward the ray's
-/// origin) at bounce `bounce` of `rng`'s sample: weighs the `POOL_CANDIDATES` records of the
+/// origin) at bounce `bounce` of `rng`'s sample: weighs the `pool_candidates(bounce)` records of the
 /// sample's block that it takes from its group's window (`pool_window`, `pool_slot`) by their
 /// unshadowed contributions (MIS-weighted as `connect`'s), picks one in proportion and adds its
 /// contribution times the mean weight over the picked one's, if a shadow ray reaches it.
@@ -467,9 +469,10 @@ pub fn connect_pooled<R: Recorder>(
     let (lane, u) = (rng.sample() % POOL_STRIDE, rng.independent_4d(POOL_PICK_TAG + bounce)[0]);
     let (records, at) = (scene.light_pool.records, scene.light_pool.offset(rng.sample()));
     let beta_albedo = beta * albedo;
+    let candidates = pool_candidates(bounce);
     let mut w = [0.0f32; POOL_CANDIDATES];
     let mut sum = 0.0f32;
-    for j in 0..POOL_CANDIDATES {
+    for j in 0..candidates {
         let (link, bw, _) = pooled_candidate(records, at + pool_slot(window, lane, j), pos, nf, beta_albedo);
         if link.ok {
             // The sum of the contribution's channels written with its common factor taken out,
@@ -486,7 +489,7 @@ pub fn connect_pooled<R: Recorder>(
     }
     let mut pick = u * sum;
     let mut y = 0;
-    for j in 0..POOL_CANDIDATES {
+    for j in 0..candidates {
         let wj = w[j];
         if wj > 0.0 {
             y = j;
@@ -502,7 +505,7 @@ pub fn connect_pooled<R: Recorder>(
     let error = Vec3::splat(pool_field(records, slot, 12));
     let target = offset_ray_origin(point, error, if link.behind { ny } else { -ny });
     if shadow_open(scene, p, spawn, target, rec) {
-        *radiance += bw * link.term * (sum / (POOL_CANDIDATES as f32 * w[y]));
+        *radiance += bw * link.term * (sum / (candidates as f32 * w[y]));
     }
 }
 
@@ -535,6 +538,21 @@ fn pool_field(records: &[f32], slot: usize, f: usize) -> f32 {
 #[inline(always)]
 fn pool_field3(records: &[f32], slot: usize, f: usize) -> Vec3 {
     Vec3::new(pool_field(records, slot, f), pool_field(records, slot, f + 1), pool_field(records, slot, f + 2))
+}
+
+/// Light vertices the eye vertex at bounce `bounce` weighs: `POOL_CANDIDATES` at the camera
+/// ray's hit, then 24, 16 and 8 from the fourth vertex on (the first rows of its window). A
+/// deeper vertex's connection carries less of the pixel's light (its throughput has fallen by
+/// the albedos on the way), so a better pick there buys less than the candidates cost; the
+/// estimate is unbiased for any count, and the strategy's weight (`POOL_WEIGHT`) stays.
+#[inline(always)]
+pub fn pool_candidates(bounce: u32) -> usize {
+    match bounce {
+        0 => POOL_CANDIDATES,
+        1 => 24,
+        2 => 16,
+        _ => 8,
+    }
 }
 
 /// The first slot of a window of candidates from 32 hashed bits: a multiple of `POOL_STRIDE`.

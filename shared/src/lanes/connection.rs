@@ -5,8 +5,8 @@ use super::sampler::LaneSampler;
 use super::warp::{cosine_hemisphere, offset_ray_origin, orthonormal_basis, power_heuristic3, weights};
 use super::{sqrt, F, LANES, M, U, V3};
 use crate::connection::{
-    CONNECT_TAG, POOL_BLOCK, POOL_CANDIDATES, POOL_FIELDS, POOL_PICK_TAG, POOL_SAMPLES, POOL_SLOTS, POOL_STRIDE,
-    POOL_WINDOW_BITS, POOL_WINDOW_TAG,
+    pool_candidates, CONNECT_TAG, POOL_BLOCK, POOL_CANDIDATES, POOL_FIELDS, POOL_PICK_TAG, POOL_SAMPLES, POOL_SLOTS,
+    POOL_STRIDE, POOL_WINDOW_BITS, POOL_WINDOW_TAG,
 };
 use crate::layout::{RenderParams, LIGHT_NOT_TRIANGLE, NO_HIT};
 use crate::sampling::INV_PI;
@@ -246,7 +246,8 @@ pub(super) fn connect_pooled(
     let mut w = [zero; POOL_CANDIDATES];
     let mut behind = [M::splat(false); POOL_CANDIDATES];
     let mut sum = zero;
-    for j in 0..POOL_CANDIDATES {
+    let candidates = pool_candidates(bounce);
+    for j in 0..candidates {
         let row = (window + U::splat(POOL_STRIDE * j as u32)) & U::splat(POOL_SLOTS - 1);
         let (row0, at) = (row[0] as usize, row + lane);
         let field = |f: usize| match group {
@@ -280,7 +281,7 @@ pub(super) fn connect_pooled(
     let mut y = U::splat(0);
     let (mut cy, mut wy, mut by) = (V3::ZERO, F::splat(1.0), M::splat(false));
     let mut found = M::splat(false);
-    for j in 0..POOL_CANDIDATES {
+    for j in 0..candidates {
         let wj = w[j];
         let take = !found & wj.simd_gt(zero);
         y = take.select(U::splat(j as u32), y);
@@ -296,7 +297,7 @@ pub(super) fn connect_pooled(
     let ny = V3::new(field(3), field(4), field(5));
     let target = offset_ray_origin(q, field(12), V3::select(by, ny, -ny));
     let open = unblocked(scene, p, spawn, target - spawn, go) & go;
-    let added = cy.scale(sum / (F::splat(POOL_CANDIDATES as f32) * wy));
+    let added = cy.scale(sum / (F::splat(candidates as f32) * wy));
     *radiance = V3::select(open, *radiance + added, *radiance);
 }
 

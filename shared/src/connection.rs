@@ -573,6 +573,19 @@ mod tests {
     use super::*;
     use crate::rng::{pcg4d, u32_to_unit_f32};
 
+    /// Every eye vertex weighs at least one candidate, or its connection strategy, which the
+    /// other strategies' weights count on, would be missing; and no more than a window's rows.
+    #[test]
+    fn every_bounce_weighs_some_candidates_of_its_window() {
+        let mut last = POOL_CANDIDATES;
+        for bounce in [0, 1, 2, 3, 4, 5, 6, 100, u32::MAX] {
+            let n = pool_candidates(bounce);
+            assert!((1..=last).contains(&n), "bounce {bounce}: {n} candidates after {last}");
+            last = n;
+        }
+        assert_eq!(pool_candidates(0), POOL_CANDIDATES, "the first hit weighs the whole window");
+    }
+
     /// `PooledLink` is `Link` with its weight at κ = `POOL_WEIGHT` from a record's terms, and
     /// stays so from the smallest scene scale to the largest (positions times `scale`, the light
     /// point's area density over its square; the term is then over `scale²`).

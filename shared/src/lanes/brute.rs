@@ -24,7 +24,7 @@ use core::simd::Select;
 
 /// A group's rays are cast by brute force where the scene has at most this many triangles per
 /// ray to cast. Measured on the 2-core AMD VM (BENCHMARKS.md, "The lane integrator"), six bounces,
-/// `farm-bench`: on CornellBox-Original's 36 triangles 3 and 8 were within 4% of each other and
+/// alternating runs: on CornellBox-Original's 36 triangles 3 and 8 were within 4% of each other and
 /// 4% faster than brute force for any number of rays; uneven-noise's 18 did not tell them apart.
 pub const TRIANGLES_PER_RAY: usize = 6;
 

@@ -127,11 +127,11 @@ impl Link {
     }
 }
 
-/// `crate::connection::PooledLink` for sixteen segments.
+/// `crate::connection::PooledLink` for sixteen segments, without its side (`behind`), which
+/// `connect_pooled` makes again for the picked candidate alone.
 struct PooledLink {
     ok: M,
     term: F,
-    behind: M,
 }
 
 impl PooledLink {
@@ -148,7 +148,7 @@ impl PooledLink {
         let geo = cos_e * inv * (cos_ye.abs() * inv);
         let r = geo * inv_p;
         let term = geo / (F::splat(1.0) + q01 * (r * r));
-        PooledLink { ok: cos_e.simd_gt(zero) & cos_yl.simd_gt(zero) & dist2.simd_gt(zero), term, behind }
+        PooledLink { ok: cos_e.simd_gt(zero) & cos_yl.simd_gt(zero) & dist2.simd_gt(zero), term }
     }
 }
 
@@ -242,9 +242,11 @@ pub(super) fn connect_pooled(
         let at = f * BLOCK_ROWS + (row / LANES) % BLOCK_ROWS;
         second.select(F::from_array(rows[POOL_FIELDS * BLOCK_ROWS + at]), F::from_array(rows[at]))
     };
-    let mut c = [V3::ZERO; POOL_CANDIDATES];
+    // Each candidate's weight and geometry term; the picked one's contribution and side are
+    // made again from its record after the pick, by the same operations, so the loop keeps
+    // two numbers a candidate.
     let mut w = [zero; POOL_CANDIDATES];
-    let mut behind = [M::splat(false); POOL_CANDIDATES];
+    let mut terms = [zero; POOL_CANDIDATES];
     let mut sum = zero;
     let candidates = pool_candidates(bounce);
     for j in 0..candidates {
@@ -262,12 +264,10 @@ pub(super) fn connect_pooled(
             continue;
         }
         let bw = beta * albedo * V3::new(field(9), field(10), field(11));
-        let cj = bw.scale(link.term);
         let wj = (bw.x + bw.y + bw.z) * link.term;
         let keep = ok & wj.simd_gt(zero) & wj.simd_lt(inf);
-        c[j] = V3::select(keep, cj, V3::ZERO);
         w[j] = keep.select(wj, zero);
-        behind[j] = keep & link.behind;
+        terms[j] = link.term;
         sum = keep.select(sum + wj, sum);
     }
     let go = live & sum.simd_gt(zero) & sum.simd_lt(inf);
@@ -279,15 +279,14 @@ pub(super) fn connect_pooled(
     // that runs from candidate to candidate is the subtraction.
     let mut pick = u * sum;
     let mut y = U::splat(0);
-    let (mut cy, mut wy, mut by) = (V3::ZERO, F::splat(1.0), M::splat(false));
+    let (mut wy, mut ty) = (F::splat(1.0), zero);
     let mut found = M::splat(false);
     for j in 0..candidates {
         let wj = w[j];
         let take = !found & wj.simd_gt(zero);
         y = take.select(U::splat(j as u32), y);
-        cy = V3::select(take, c[j], cy);
         wy = take.select(wj, wy);
-        by = take.select(behind[j], by);
+        ty = take.select(terms[j], ty);
         found |= take & pick.simd_lt(wj);
         pick -= wj;
     }
@@ -295,6 +294,9 @@ pub(super) fn connect_pooled(
     let field = |f: usize| gathered(at, f);
     let q = V3::new(field(0), field(1), field(2));
     let ny = V3::new(field(3), field(4), field(5));
+    // `PooledLink`'s side and the loop's contribution of the picked candidate.
+    let by = ny.dot(q - pos).simd_lt(zero);
+    let cy = (beta * albedo * V3::new(field(9), field(10), field(11))).scale(ty);
     let target = offset_ray_origin(q, field(12), V3::select(by, ny, -ny));
     let open = unblocked(scene, p, spawn, target - spawn, go) & go;
     let added = cy.scale(sum / (F::splat(candidates as f32) * wy));

@@ -248,6 +248,7 @@ pub(super) fn connect_pooled(
     let mut w = [zero; POOL_CANDIDATES];
     let mut terms = [zero; POOL_CANDIDATES];
     let mut sum = zero;
+    let beta_albedo = beta * albedo;
     let candidates = pool_candidates(bounce);
     for j in 0..candidates {
         let row = (window + U::splat(POOL_STRIDE * j as u32)) & U::splat(POOL_SLOTS - 1);
@@ -263,7 +264,7 @@ pub(super) fn connect_pooled(
         if !ok.any() {
             continue;
         }
-        let bw = beta * albedo * V3::new(field(9), field(10), field(11));
+        let bw = beta_albedo * V3::new(field(9), field(10), field(11));
         let wj = (bw.x + bw.y + bw.z) * link.term;
         let keep = ok & wj.simd_gt(zero) & wj.simd_lt(inf);
         w[j] = keep.select(wj, zero);
@@ -296,7 +297,7 @@ pub(super) fn connect_pooled(
     let ny = V3::new(field(3), field(4), field(5));
     // `PooledLink`'s side and the loop's contribution of the picked candidate.
     let by = ny.dot(q - pos).simd_lt(zero);
-    let cy = (beta * albedo * V3::new(field(9), field(10), field(11))).scale(ty);
+    let cy = (beta_albedo * V3::new(field(9), field(10), field(11))).scale(ty);
     let target = offset_ray_origin(q, field(12), V3::select(by, ny, -ny));
     let open = unblocked(scene, p, spawn, target - spawn, go) & go;
     let added = cy.scale(sum / (F::splat(candidates as f32) * wy));

@@ -226,6 +226,23 @@ fn missing_material_library_renders_grey() {
     assert!(stderr(&o).contains("material library not found"), "{}", stderr(&o));
 }
 
+/// A scene that nothing lights renders black and says why; a constant environment lights it,
+/// and the warning goes.
+#[test]
+fn a_scene_without_light_warns_that_it_renders_black() {
+    let obj = write("unlit.obj", "v -1 -1 -3\nv 1 -1 -3\nv 0 1 -3\nf 1 2 3\n");
+    let camera = ["--eye", "0,0,0", "--target", "0,0,-1", "--up", "0,1,0", "--fov", "60"];
+    let warning = "nothing emits light";
+    for (extra, lit) in [(&[][..], false), (&["--environment", "1,1,1"][..], true)] {
+        let out = tmp(&format!("unlit-{lit}.exr"));
+        let o = tiny_render(obj.to_str().unwrap(), &out, &[&camera[..], extra].concat());
+        assert!(o.status.success(), "{extra:?}: {}", stderr(&o));
+        assert_eq!(stderr(&o).contains(warning), !lit, "{extra:?}: {}", stderr(&o));
+        let (_, _, px) = kdtrace::image::io::read_exr(&out).unwrap();
+        assert_eq!(black(&px), !lit, "{extra:?}");
+    }
+}
+
 /// `--specialize off` writes the same file as the specialised default, and says which ran;
 /// `--adaptive` reports the spread of samples per pixel.
 #[test]

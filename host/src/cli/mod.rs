@@ -158,6 +158,13 @@ fn settings(a: &ImageArgs, loaded: &mut Loaded, scene: &Path) -> Result<RenderSe
     s.light_pool = a.light_pool == args::Switch::On;
     s.adaptive = a.adaptive.map(|threshold| Adaptive { threshold, min_spp: a.min_spp, mode: a.adaptive_mode });
     s.check()?;
+    if s.aov == crate::settings::Aov::Radiance && !crate::render::features::lit(&loaded.compiled, &s) {
+        eprintln!(
+            "warning: {}: nothing emits light (no emitting material, light or environment): the image is black; \
+             --environment R,G,B lights it from every direction",
+            scene.display()
+        );
+    }
     Ok(s)
 }
 

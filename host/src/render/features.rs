@@ -159,6 +159,17 @@ pub fn seen_light_share(c: &Compiled, s: &RenderSettings) -> f64 {
     share
 }
 
+/// Whether anything lights the scene under settings `s`: an emitting triangle, a punctual
+/// light, an environment map or a constant environment that is not black. Without any, every
+/// radiance pixel is zero, which `render` warns of.
+pub fn lit(c: &Compiled, s: &RenderSettings) -> bool {
+    let scene = &c.scene;
+    !scene.lights.is_empty()
+        || !scene.punctual_lights.is_empty()
+        || scene.environment_map.is_some()
+        || max_component(s.environment) > 0.0
+}
+
 pub fn analyse(c: &Compiled, s: &RenderSettings) -> Features {
     let scene = &c.scene;
     let emitters = scene.lights.len();

@@ -79,9 +79,17 @@ def records(path):
                 yield "f", idx
 
 
-def load(path):
-    """Returns {material name: {"Kd", "Ke", "vertices": [(x,y,z)], "triangles": [(i,j,k)]}}."""
+def load(path, drop_coincident=False):
+    """Returns {material name: {"Kd", "Ke", "vertices": [(x,y,z)], "triangles": [(i,j,k)]}}.
+
+    With `drop_coincident`, a triangle whose three corners (in any order) are those of a triangle
+    met before is left out: for opaque two-sided surfaces a coincident twin changes nothing, as
+    a ray hits one of the two, but a renderer whose rays skip only the triangle they leave (Cycles)
+    finds the twin at distance zero and shadows the face. CornellBox-Original's "bottom" faces of
+    the two blocks repeat a side face's corners, and uneven-noise's partition is two faces of
+    opposite winding."""
     verts, mats, parts = [], {}, {}
+    seen = set()
     current = None
     for kind, value in records(path):
         if kind == "v":
@@ -95,7 +103,13 @@ def load(path):
             name = current if current in mats else None
             part = parts.setdefault(name, {"triangles": []})
             for k in range(1, len(value) - 1):
-                part["triangles"].append((value[0], value[k], value[k + 1]))
+                tri = (value[0], value[k], value[k + 1])
+                if drop_coincident:
+                    key = frozenset(verts[i] for i in tri)
+                    if key in seen:
+                        continue
+                    seen.add(key)
+                part["triangles"].append(tri)
     out = {}
     for name, part in parts.items():
         m = mats.get(name, {"Kd": DEFAULT_ALBEDO, "Ke": (0.0, 0.0, 0.0)})

@@ -8,7 +8,8 @@ node's Backfacing output, so emission is one-sided from the counter-clockwise si
 bounces (Mitsuba's max_depth - 2), no clamping, no denoising, no adaptive sampling, light
 threshold 0, Standard view transform, 2 fixed threads, 32-bit float linear EXR out. The camera is
 placed by an explicit matrix from eye/target/up (Blender cameras look down their local -Z with +Y
-up) and its vertical field of view.
+up) and its vertical field of view. Coincident twin triangles are dropped (`objscene.load`):
+Cycles' rays skip only the triangle they leave, so a twin would shadow its face.
 """
 import json
 import math
@@ -102,7 +103,7 @@ def setup(args):
     bg.inputs["Strength"].default_value = 0.0
     scene.world = world
 
-    for name, part in objscene.load(args.scene).items():
+    for name, part in objscene.load(args.scene, drop_coincident=True).items():
         mesh = bpy.data.meshes.new(name)
         mesh.from_pydata(part["vertices"], [], part["triangles"])
         mesh.update()

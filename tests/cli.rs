@@ -324,7 +324,8 @@ fn cpu_instruction_sets_render_the_same_image() {
         for isa in ["default", "baseline"] {
             let out = tmp(&format!("isa-{i}-{isa}.exr"));
             let args = ["render", &repo(scene), "--out", out.to_str().unwrap(), "--device", "cpu", "--json"];
-            let size = ["--spp", "4", "--width", "24", "--height", "20", "--bounces", "4"];
+            // Twelve samples: a block of eight through the lanes, four through the scalar code.
+            let size = ["--spp", "12", "--width", "24", "--height", "20", "--bounces", "4"];
             let mut cmd = Command::new(env!("CARGO_BIN_EXE_kdtrace"));
             cmd.args(args).args(size);
             if isa == "baseline" {

@@ -58,8 +58,10 @@ pub const fn covers(features: u32) -> bool {
 
 /// Calls for fewer samples a pixel than this run the scalar integrator: a group's cost hardly
 /// falls with its live lanes, so a pass of one sample a pixel (a time-limited render's first,
-/// the web UI's) would pay for sixteen.
-pub const MIN_SAMPLES: u32 = 4;
+/// the web UI's) would pay for sixteen, and one of four (a quick preview, the tail of a render
+/// whose samples are not a multiple of eight) costs what sixteen cost, more than four samples
+/// one by one (BENCHMARKS.md, "The lane integrator").
+pub const MIN_SAMPLES: u32 = 8;
 
 /// `integrator::render_runs_for::<FEATURES>`, the same sums bit for bit: sixteen samples at a
 /// time where `covers(FEATURES)` and the image is radiance, the scalar integrator otherwise. A

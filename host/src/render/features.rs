@@ -161,7 +161,7 @@ pub fn seen_light_share(c: &Compiled, s: &RenderSettings) -> f64 {
 
 /// Whether anything lights the scene under settings `s`: an emitting triangle, a punctual
 /// light, an environment map or a constant environment that is not black. Without any, every
-/// radiance pixel is zero, which `render` warns of.
+/// radiance pixel is zero, which the command line warns of.
 pub fn lit(c: &Compiled, s: &RenderSettings) -> bool {
     let scene = &c.scene;
     !scene.lights.is_empty()

@@ -324,8 +324,10 @@ fn cpu_instruction_sets_render_the_same_image() {
         for isa in ["default", "baseline"] {
             let out = tmp(&format!("isa-{i}-{isa}.exr"));
             let args = ["render", &repo(scene), "--out", out.to_str().unwrap(), "--device", "cpu", "--json"];
-            // Twelve samples: a block of eight through the lanes, four through the scalar code.
-            let size = ["--spp", "12", "--width", "24", "--height", "20", "--bounces", "4"];
+            // Eleven samples, 23 pixels a row: a block of eight (groups of two pixels), then three
+            // samples (groups of five pixels and one, the row's last five samples through the
+            // scalar code).
+            let size = ["--spp", "11", "--width", "23", "--height", "20", "--bounces", "4"];
             let mut cmd = Command::new(env!("CARGO_BIN_EXE_kdtrace"));
             cmd.args(args).args(size);
             if isa == "baseline" {
@@ -353,7 +355,8 @@ fn cpu_instruction_sets_render_the_same_image() {
 /// scalar integrator renders (`KDTRACE_CPU_LANES=off`), bit for bit, on the scenes it covers:
 /// one and many emitters, a constant environment (the bunny's sky), textures, direct light alone and paths long enough for
 /// Russian roulette and the sampler's independent sets, both samplers, sample counts that leave
-/// a group part-filled, adaptive sampling's uneven counts, and every material kind: rough and
+/// a group part-filled or fill it from several pixels (one, three or ten samples a pixel, 23
+/// pixels a row), adaptive sampling's uneven counts, and every material kind: rough and
 /// smooth glass, rough plastic, a rough conductor, MTL mirrors and glass, and glTF principled
 /// materials with textures, masks and transmission; an environment map and punctual lights; a
 /// mesh in a box, whose walls the lanes test apart (`lanes::split`). `render --json` says which
@@ -401,8 +404,14 @@ intensity = 2
     )
     .unwrap();
     let boxed = boxed.to_string_lossy().into_owned();
-    let cases: [(&str, &[&str]); 17] = [
+    let cases: [(&str, &[&str]); 20] = [
         ("scenes/cornell-box.obj", &["--spp", "21", "--bounces", "6"]),
+        ("scenes/cornell-box.obj", &["--spp", "1", "--bounces", "6"]),
+        ("tests/data/meshes/CornellBox-Original/CornellBox-Original.obj", &["--spp", "10", "--bounces", "5"]),
+        (
+            "scenes/uneven-noise.obj",
+            &["--spp", "3", "--bounces", "6", "--eye=0.4,1.0,3.9", "--target=2.6,1.0,0.5", "--fov=70"],
+        ),
         ("scenes/cornell-box.obj", &["--spp", "16", "--bounces", "0", "--sampler", "independent"]),
         ("scenes/bunny.toml", &["--spp", "9", "--bounces", "3", "--seed", "7"]),
         (

@@ -21,7 +21,7 @@ use kdtrace::{load, Loaded};
 use paths::repo;
 use shared::features::{Variant, FEATURES_ALL};
 use shared::glam::{Vec3, Vec4};
-use shared::integrator::render_samples;
+use shared::integrator::{render_samples, PixelSpan};
 use shared::layout::NO_HIT;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -198,7 +198,8 @@ fn later_samples_replay_what_the_renderer_adds() {
                 let r = debug::replay(c, &s, x, y, sample).unwrap();
                 let (mut sum, mut sum_sq, mut primary) = (Vec4::ZERO, Vec4::ZERO, NO_HIT);
                 let (sums, sums_sq) = (core::slice::from_mut(&mut sum), core::slice::from_mut(&mut sum_sq));
-                variant(&view, &params, x, y, sample, 1, 1, sums, sums_sq, &mut primary);
+                let span = [PixelSpan { x, start: sample, count: 1 }];
+                variant(&view, &params, y, &span, 1, 1, sums, sums_sq, core::slice::from_mut(&mut primary));
                 assert_eq!(bits(r.radiance), bits(sum.truncate().to_array()), "({x}, {y}) sample {sample}");
                 assert_eq!(r.zeroed, sum.w == 1.0);
                 let generic = Variant::new(FEATURES_ALL, &params);

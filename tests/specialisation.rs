@@ -28,6 +28,7 @@ use shared::features::{
     FEATURE_PRINCIPLED, FEATURE_PUNCTUAL,
 };
 use shared::glam::{DVec3, Vec3, Vec4};
+use shared::integrator::PixelSpan;
 use shared::layout::Material;
 use shared::material::CONDUCTOR_PRESETS;
 
@@ -392,11 +393,12 @@ fn leaving_out_a_used_feature_changes_the_image() {
         let view = c.view(&params);
         let f = cpu::variant(bits & !bit);
         let (mut sum, mut sum_sq, mut primary) = (vec![Vec4::ZERO; 320], vec![Vec4::ZERO; 320], vec![0; 320]);
-        for y in 0..s.height {
-            for x in 0..s.width {
-                let i = (y * s.width + x) as usize;
-                f(&view, &params, x, y, 0, s.spp, s.spp, &mut sum[i..=i], &mut sum_sq[i..=i], &mut primary[i]);
-            }
+        let w = s.width as usize;
+        let spans: Vec<PixelSpan> = (0..s.width).map(|x| PixelSpan { x, start: 0, count: s.spp }).collect();
+        for (y, ((sum, sum_sq), primary)) in
+            sum.chunks_mut(w).zip(sum_sq.chunks_mut(w)).zip(primary.chunks_mut(w)).enumerate()
+        {
+            f(&view, &params, y as u32, &spans, s.spp, 1, sum, sum_sq, primary);
         }
         assert_ne!(sum, full.sum, "leaving out feature bit {bit} changed nothing");
     }

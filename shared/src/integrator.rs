@@ -609,35 +609,51 @@ pub fn render_samples(
     *sum_sq = acc_sq;
 }
 
+/// One pixel's share of a call for a row of pixels (`render_pixels_for`): its column and the
+/// samples `[start, start + count)` it takes (none where `count` is 0).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PixelSpan {
+    pub x: u32,
+    pub start: u32,
+    pub count: u32,
+}
+
 /// `render_samples` compiled for the feature set `F` (a CPU variant, monomorphised, so what `F`
-/// leaves out is not in its code; `F = FEATURES_ALL` is the generic code), with the sums cut into
-/// runs of `per` samples: sample `start + i` is added to `sum[i / per]` and `sum_sq[i / per]`,
-/// each run in sample order, so each run's sums are the ones a call for that run alone adds. The
-/// CPU renders two blocks of samples in one call this way (`lanes::integrator`, whose sixteen
-/// lanes two blocks of eight fill) and keeps each block's sums apart. `per` 0 counts as 1.
-/// Inlined whole into its callers, so that a caller compiled for more instructions (the CPU's
-/// AVX-512 copies) compiles all of it, traversal included, for them.
+/// leaves out is not in its code; `F = FEATURES_ALL` is the generic code) for each pixel of
+/// `pixels`, all in row `y`, in turn, with each pixel's sums cut into runs of `per` samples:
+/// sample `start + i` of pixel `k` is added to `sum[r * pixels.len() + k]` (and `sum_sq`),
+/// `r = i / per`, each run in sample order, so each run's sums are the ones a call for that run
+/// alone adds; pixel `k`'s primary hit goes to `primary[k]`. `runs` is the runs a pixel has at
+/// most; `per` 0 counts as 1. The CPU renders two blocks of samples in one call this way and
+/// keeps each block's sums apart, and takes a row at a time, so that the lane integrator
+/// (`lanes::integrator::render_pixels_for`) fills its sixteen lanes from two blocks or from
+/// several pixels. Inlined whole into its callers, so that a caller compiled for more
+/// instructions (the CPU's AVX-512 copies) compiles all of it, traversal included, for them.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub fn render_runs_for<const F: u32>(
+pub fn render_pixels_for<const F: u32>(
     scene: &SceneView,
     p: &RenderParams,
-    x: u32,
     y: u32,
-    start: u32,
-    count: u32,
+    pixels: &[PixelSpan],
     per: u32,
+    runs: usize,
     sum: &mut [Vec4],
     sum_sq: &mut [Vec4],
-    primary: &mut u32,
+    primary: &mut [u32],
 ) {
-    let (end, per) = (start + count, per.max(1));
-    let mut s = start;
-    let mut run = 0;
-    while s < end {
-        let n = (end - s).min(per);
-        render_samples(scene, p, Variant::new(F, p), x, y, s, n, &mut sum[run], &mut sum_sq[run], primary);
-        s += n;
-        run += 1;
+    let n = pixels.len();
+    let v = Variant::new(F, p);
+    let per = per.max(1);
+    for (k, px) in pixels.iter().enumerate() {
+        let (end, mut s, mut run) = (px.start + px.count, px.start, 0);
+        while s < end {
+            let c = (end - s).min(per);
+            let at = run * n + k;
+            render_samples(scene, p, v, px.x, y, s, c, &mut sum[at], &mut sum_sq[at], &mut primary[k]);
+            s += c;
+            run += 1;
+        }
+        debug_assert!(run <= runs.max(1));
     }
 }

@@ -34,7 +34,7 @@ pub fn query(scene: &SceneView, traversal: u32, origin: Vec3, dir: Vec3, t_max: 
 }
 
 /// `query`, telling `rec` of every k-d node the traversal visits (`Recorder::node`).
-/// Inlined, with the wide BVH's traversal, into the integrator (`render_runs_for`).
+/// Inlined, with the wide BVH's traversal, into the integrator (`render_pixels_for`).
 #[inline(always)]
 pub fn query_recorded<R: Recorder>(
     scene: &SceneView,

@@ -13,8 +13,8 @@ use shared::features::{
     FEATURE_PUNCTUAL, FEATURE_TEXTURES, FEATURE_VERTEX_NORMALS,
 };
 use shared::glam::Vec4;
-use shared::integrator::render_runs_for;
-use shared::lanes::integrator::render_runs_for as lanes_render_runs_for;
+use shared::integrator::{render_pixels_for, PixelSpan};
+use shared::lanes::integrator::render_pixels_for as lanes_render_pixels_for;
 use shared::layout::{RayQuery, RayResult, RenderParams, NO_HIT};
 use shared::raycast::cast_ray;
 use shared::scene::SceneView;
@@ -29,28 +29,28 @@ const PASS_SECONDS: f64 = 0.25;
 /// is checked often.
 const ADAPTIVE_PASS_SAMPLES: u32 = 16;
 
-/// A monomorphised variant of the integrator: `render_runs_for::<F>` (scene, parameters, pixel
-/// x and y, the first sample and the count, the samples a run, each run's sums and squared sums,
-/// the primary hit).
-pub type VariantFn = fn(&SceneView, &RenderParams, u32, u32, u32, u32, u32, &mut [Vec4], &mut [Vec4], &mut u32);
+/// A monomorphised variant of the integrator: `render_pixels_for::<F>` (scene, parameters, the
+/// row, its pixels' samples, the samples a run, the runs a pixel has at most, each pixel's runs'
+/// sums and squared sums (run `r` of pixel `k` at `r * pixels + k`), the pixels' primary hits).
+pub type VariantFn = fn(&SceneView, &RenderParams, u32, &[PixelSpan], u32, usize, &mut [Vec4], &mut [Vec4], &mut [u32]);
 
 /// The compiled variants: every combination of the feature bits outside the materials and the
 /// surface bits, each for diffuse alone and for every material kind, and all of those once
 /// without and once with the surface bits; then the four that connect light subpaths
 /// (`FEATURE_CONNECT`: Lambertian, emitting triangles and indirect light, with or without more
 /// than one emitter and a constant environment) (`cpu_variant_bits`): `VARIANTS[i]` is
-/// `render_runs_for::<{ CANONICAL[i] }>`, and `LANE_VARIANTS[i]` the same through
-/// `shared::lanes::integrator::render_runs_for`, which renders sixteen samples of a pixel at
-/// once and the same image bit for bit (it covers every variant).
+/// `render_pixels_for::<{ CANONICAL[i] }>`, and `LANE_VARIANTS[i]` the same through
+/// `shared::lanes::integrator::render_pixels_for`, which renders sixteen samples at once (of one
+/// pixel or of a few neighbours) and the same image bit for bit (it covers every variant).
 macro_rules! variants {
     ($($bits:literal)*) => {
         #[cfg_attr(not(test), allow(dead_code))]
         const CANONICAL: [u32; 68] = [$($bits),*];
-        static VARIANTS: [VariantFn; 68] = [$(render_runs_for::<$bits> as VariantFn),*];
+        static VARIANTS: [VariantFn; 68] = [$(render_pixels_for::<$bits> as VariantFn),*];
         /// The same variants compiled for AVX-512 (`avx512::render_samples`).
         #[cfg(target_arch = "x86_64")]
         static VARIANTS_AVX512: [VariantFn; 68] = [$(avx512::render_samples::<$bits> as VariantFn),*];
-        static LANE_VARIANTS: [VariantFn; 68] = [$(lanes_render_runs_for::<$bits> as VariantFn),*];
+        static LANE_VARIANTS: [VariantFn; 68] = [$(lanes_render_pixels_for::<$bits> as VariantFn),*];
         /// The same compiled for AVX-512 (`avx512::render_samples_lanes`).
         #[cfg(target_arch = "x86_64")]
         static LANE_VARIANTS_AVX512: [VariantFn; 68] = [$(avx512::render_samples_lanes::<$bits> as VariantFn),*];
@@ -246,39 +246,37 @@ mod avx512 {
             fn $compiled<const F: u32>(
                 scene: &SceneView,
                 p: &RenderParams,
-                x: u32,
                 y: u32,
-                start: u32,
-                count: u32,
+                pixels: &[PixelSpan],
                 per: u32,
+                runs: usize,
                 sum: &mut [Vec4],
                 sum_sq: &mut [Vec4],
-                primary: &mut u32,
+                primary: &mut [u32],
             ) {
-                $integrator::<F>(scene, p, x, y, start, count, per, sum, sum_sq, primary)
+                $integrator::<F>(scene, p, y, pixels, per, runs, sum, sum_sq, primary)
             }
 
             #[allow(clippy::too_many_arguments)]
             pub fn $name<const F: u32>(
                 scene: &SceneView,
                 p: &RenderParams,
-                x: u32,
                 y: u32,
-                start: u32,
-                count: u32,
+                pixels: &[PixelSpan],
                 per: u32,
+                runs: usize,
                 sum: &mut [Vec4],
                 sum_sq: &mut [Vec4],
-                primary: &mut u32,
+                primary: &mut [u32],
             ) {
                 // SAFETY: see above: the CPU has every feature the function is compiled for.
-                unsafe { $compiled::<F>(scene, p, x, y, start, count, per, sum, sum_sq, primary) }
+                unsafe { $compiled::<F>(scene, p, y, pixels, per, runs, sum, sum_sq, primary) }
             }
         };
     }
     // The scalar integrator (`VARIANTS_AVX512`) and the lane integrator (`LANE_VARIANTS_AVX512`).
-    avx512_variant!(render_samples, render_samples_avx512, render_runs_for);
-    avx512_variant!(render_samples_lanes, render_samples_lanes_avx512, lanes_render_runs_for);
+    avx512_variant!(render_samples, render_samples_avx512, render_pixels_for);
+    avx512_variant!(render_samples_lanes, render_samples_lanes_avx512, lanes_render_pixels_for);
 
     /// `shared::raycast::cast_ray` compiled for AVX-512 (the wide BVH's traversal is inlined).
     #[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq,avx512cd")]
@@ -449,27 +447,30 @@ impl<'a> CpuSums<'a> {
             next_sq.clear();
             next_sq.resize(n, Vec4::ZERO);
         }
+        let (start, count) = (params.sample_start, params.sample_count);
+        let spans: Vec<PixelSpan> = (0..w as u32).map(|x| PixelSpan { x, start, count }).collect();
         let row = |y: usize,
                    sum: &mut [Vec4],
                    sum_sq: &mut [Vec4],
                    primary: &mut [u32],
-                   mut next: Option<(&mut [Vec4], &mut [Vec4])>| {
-            for x in 0..w {
-                let mut acc = [sum[x], Vec4::ZERO];
-                let mut acc_sq = [sum_sq[x], Vec4::ZERO];
-                if let Some((r, r_sq)) = &next {
-                    (acc[1], acc_sq[1]) = (r[x], r_sq[x]);
-                }
-                let before = acc[0].w + acc[1].w;
-                let (px, py) = (x as u32, y as u32);
-                let (start, count) = (params.sample_start, params.sample_count);
-                let (acc_runs, acc_sq_runs) = (&mut acc[..runs], &mut acc_sq[..runs]);
-                render_samples(&scene, &params, px, py, start, count, per, acc_runs, acc_sq_runs, &mut primary[x]);
-                (sum[x], sum_sq[x]) = (acc[0], acc_sq[0]);
-                if let Some((r, r_sq)) = &mut next {
-                    (r[x], r_sq[x]) = (acc[1], acc_sq[1]);
-                }
-                let after = acc[0].w + acc[1].w;
+                   next: Option<(&mut [Vec4], &mut [Vec4])>| {
+            // The row's runs side by side: the first block's sums, then the second's.
+            let (mut acc, mut acc_sq) = (sum.to_vec(), sum_sq.to_vec());
+            if let Some((r, r_sq)) = &next {
+                acc.extend_from_slice(r);
+                acc_sq.extend_from_slice(r_sq);
+            }
+            let zeroed = |acc: &[Vec4], x: usize| (0..runs).map(|r| acc[r * w + x].w).sum::<f32>();
+            let before: Vec<f32> = (0..w).map(|x| zeroed(&acc, x)).collect();
+            render_samples(&scene, &params, y as u32, &spans, per, runs, &mut acc, &mut acc_sq, primary);
+            sum.copy_from_slice(&acc[..w]);
+            sum_sq.copy_from_slice(&acc_sq[..w]);
+            if let Some((r, r_sq)) = next {
+                r.copy_from_slice(&acc[w..]);
+                r_sq.copy_from_slice(&acc_sq[w..]);
+            }
+            for (x, before) in before.into_iter().enumerate() {
+                let after = zeroed(&acc, x);
                 if after > before {
                     eprintln!("warning: pixel ({x}, {y}): {} non-finite or negative sample(s) zeroed", after - before);
                 }
@@ -636,22 +637,10 @@ impl adaptive::Passes for CpuPasses<'_> {
             .zip(ranges.par_chunks(w))
             .enumerate()
             .for_each(|(y, (((sum, sum_sq), primary), ranges))| {
-                for (x, &[start, count]) in ranges.iter().enumerate() {
-                    if count > 0 {
-                        f(
-                            scene,
-                            params,
-                            x as u32,
-                            y as u32,
-                            start,
-                            count,
-                            count,
-                            core::slice::from_mut(&mut sum[x]),
-                            core::slice::from_mut(&mut sum_sq[x]),
-                            &mut primary[x],
-                        );
-                    }
-                }
+                let spans: Vec<PixelSpan> =
+                    ranges.iter().zip(0..).map(|(&[start, count], x)| PixelSpan { x, start, count }).collect();
+                // Each pixel's samples are one run.
+                f(scene, params, y as u32, &spans, u32::MAX, 1, sum, sum_sq, primary);
             });
         Ok(())
     }

@@ -216,10 +216,11 @@ pub(super) fn connect_pooled(
     let sample = rng.sample();
     let lane = sample % U::splat(POOL_STRIDE);
     let base = (sample / U::splat(POOL_SAMPLES) - U::splat(scene.light_pool.first_block)) * U::splat(POOL_BLOCK as u32);
-    // One group: lane `i` holds sample `16k + i`.
+    // One group: lane `i` holds sample `16k + i` of one pixel (whose window every lane shares).
     let s0 = sample[0];
-    let grouped =
-        s0.is_multiple_of(POOL_STRIDE) & (sample == U::splat(s0) + U::from_array(core::array::from_fn(|i| i as u32)));
+    let grouped = s0.is_multiple_of(POOL_STRIDE)
+        & (sample == U::splat(s0) + U::from_array(core::array::from_fn(|i| i as u32)))
+        && rng.one_pixel();
     let enable = live.cast::<isize>();
     // Field `f` of each lane's candidate in slot `at` (the window's row plus the lane).
     let gathered = |at: U, f: usize| {

@@ -1,20 +1,20 @@
-//! The path loop of `crate::integrator` for sixteen samples of one pixel in lockstep: lane i
-//! follows sample `start + i` vertex by vertex, and a lane whose path has ended stays masked
-//! off until the last one ends. Every step is the scalar integrator's for the variants `covers`
+//! The path loop of `crate::integrator` for sixteen samples in lockstep (a pixel's, or a few
+//! neighbours' in a row): lane i follows its pixel's sample vertex by vertex, and a lane whose
+//! path has ended stays masked off until the last one ends. Every step is the scalar integrator's for the variants `covers`
 //! admits, in its order; the sampler's sets stay in step because every live path is at the same
 //! vertex.
 //!
 //! With the wide BVH (the CPU path's traversal), the sixteen rays of a step in a small scene
 //! are cast together against every triangle (`brute`); elsewhere the camera rays of a full
 //! group are traced as one packet (`wide_packet`, which finds each ray's own hit): they leave
-//! one pixel in nearly one direction. The rays after them are traced one by one: from the first
+//! one pixel, or a few neighbours, in nearly one direction. The rays after them are traced one by one: from the first
 //! vertex on, a pixel's rays are as incoherent as any, and packets of them were slower
 //! (BENCHMARKS.md, "Packets of sixteen rays"). All three find the hit brute force finds, bit
 //! for bit, so the image does not depend on which ran. A k-d traversal, asked for with
 //! `--traversal`, traces every ray one by one: at extreme coordinates it may miss a hit within
 //! rounding of a ray's origin that brute force finds (`tests/stress_renders.rs`), and the CPU
 //! renders with it to compare with the GPU, which traverses the k-d tree.
-use super::sampler::LaneSampler;
+use super::sampler::{LaneSampler, LaneSeeds};
 use super::warp::{
     cosine_hemisphere, offset_ray_origin, orthonormal_basis, power_heuristic, power_heuristic3, primary_direction,
     uniform_triangle, weights, Triangles,
@@ -26,7 +26,9 @@ use crate::features::{
     FEATURE_VERTEX_NORMALS,
 };
 use crate::glam::{Vec3, Vec4};
-use crate::integrator::{map_seen, medium_transmittance, sample_other_light, RR_MAX_SURVIVAL, SHADOW_EPSILON};
+use crate::integrator::{
+    map_seen, medium_transmittance, sample_other_light, PixelSpan, RR_MAX_SURVIVAL, SHADOW_EPSILON,
+};
 use crate::kdtree::Hit;
 use crate::layout::{
     Material, RenderParams, AOV_RADIANCE, LIGHT_NOT_TRIANGLE, MATERIAL_DIFFUSE, NO_ENVIRONMENT_MAP, NO_HIT, NO_LIGHT,
@@ -56,58 +58,112 @@ pub const fn covers(features: u32) -> bool {
     (features & !FEATURES_ALL == 0) & (features & FEATURE_MATERIALS != 0)
 }
 
-/// Calls for fewer samples a pixel than this run the scalar integrator: a group's cost hardly
-/// falls with its live lanes, so a pass of one sample a pixel (a time-limited render's first,
-/// the web UI's) would pay for sixteen, and one of four (a quick preview, the tail of a render
-/// whose samples are not a multiple of eight) costs what sixteen cost, more than four samples
-/// one by one (BENCHMARKS.md, "The lane integrator").
-pub const MIN_SAMPLES: u32 = 8;
+/// A group with fewer live lanes than this runs the scalar integrator: a group's cost hardly
+/// falls with its live lanes, so one of four samples costs about what sixteen cost, more than
+/// four samples one by one (BENCHMARKS.md, "The lane integrator"). Groups fill from several
+/// pixels, so only the last group of a row (or of a row's few samples) can be short.
+pub const MIN_LANES: usize = 8;
 
-/// `integrator::render_runs_for::<FEATURES>`, the same sums bit for bit: sixteen samples at a
-/// time where `covers(FEATURES)` and the image is radiance, the scalar integrator otherwise. A
-/// group of sixteen may span runs (two blocks of eight): each lane's sample is added to its own
-/// run's sums, in sample order.
+/// `integrator::render_pixels_for::<FEATURES>`, the same sums bit for bit: sixteen samples at
+/// a time where `covers(FEATURES)` and the image is radiance, the scalar integrator otherwise.
+/// The groups of sixteen lanes are filled from the row's samples in order, pixel by pixel and
+/// within a pixel sample by sample, so a group holds one pixel's sixteen samples, two pixels'
+/// eight (a pass of one block), sixteen pixels' one (a progressive or time-limited render's
+/// first pass), or the end of one pixel's samples and the start of the next's (adaptive
+/// sampling's uneven counts). Each lane's sample is added to its pixel's run's sums, in sample
+/// order.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub fn render_runs_for<const FEATURES: u32>(
+pub fn render_pixels_for<const FEATURES: u32>(
     scene: &SceneView,
     p: &RenderParams,
-    x: u32,
     y: u32,
-    start: u32,
-    count: u32,
+    pixels: &[PixelSpan],
     per: u32,
+    runs: usize,
     sum: &mut [Vec4],
     sum_sq: &mut [Vec4],
-    primary: &mut u32,
+    primary: &mut [u32],
 ) {
-    if !covers(FEATURES) | (p.aov != AOV_RADIANCE) | (count < MIN_SAMPLES) {
-        crate::integrator::render_runs_for::<FEATURES>(scene, p, x, y, start, count, per, sum, sum_sq, primary);
+    if !covers(FEATURES) | (p.aov != AOV_RADIANCE) {
+        crate::integrator::render_pixels_for::<FEATURES>(scene, p, y, pixels, per, runs, sum, sum_sq, primary);
         return;
     }
     let v = Variant::new(FEATURES, p);
-    let pixel = y * p.width + x;
-    let seeds = PixelSeeds::new(p.sampler, pixel, p.seed);
-    let per = per.max(1);
-    let end = start + count;
-    let mut s = start;
-    while s < end {
-        let n = (end - s).min(LANES as u32);
-        let samples = U::from_array(core::array::from_fn(|i| s.wrapping_add(i as u32)));
-        let live = M::from_array(core::array::from_fn(|i| (i as u32) < n));
-        let rng = LaneSampler::new(p.sampler, pixel, samples, p.seed, seeds);
-        let (radiance, first) = trace_paths(scene, p, v, x, y, rng, live);
-        if s == 0 {
-            *primary = first[0];
+    let (n, per) = (pixels.len(), per.max(1));
+    // The next sample to place: pixel `k`, sample `s`; the seeds of the pixel placed last.
+    let (mut k, mut s) = (0usize, pixels.first().map_or(0, |px| px.start));
+    let mut seeds_of = usize::MAX;
+    let mut seeds = PixelSeeds::new(p.sampler, 0, p.seed);
+    let mut lane_seeds = LaneSeeds::splat(&seeds);
+    loop {
+        // Fill a group: lane `i` takes sample `sample[i]` of pixel `at[i]`. The seeds are set
+        // lane by lane only in a group of several pixels (`mixed`), and splatted otherwise.
+        let (mut at, mut sample, mut x) = ([0usize; LANES], [0u32; LANES], [0u32; LANES]);
+        let (mut live, mut mixed) = (0, false);
+        while (live < LANES) & (k < n) {
+            let px = pixels[k];
+            if s >= px.start + px.count {
+                k += 1;
+                s = pixels.get(k).map_or(0, |px| px.start);
+                continue;
+            }
+            if seeds_of != k {
+                if (live > 0) & !mixed {
+                    // The lanes placed so far are all of the pixel before.
+                    (lane_seeds, mixed) = (LaneSeeds::splat(&seeds), true);
+                }
+                (seeds_of, seeds) = (k, PixelSeeds::new(p.sampler, y * p.width + px.x, p.seed));
+            }
+            if mixed {
+                lane_seeds.set_lane(live, &seeds);
+            }
+            (at[live], sample[live], x[live]) = (k, s, px.x);
+            live += 1;
+            s += 1;
         }
-        // Summed in sample order, as the scalar integrator sums them.
-        for i in 0..n as usize {
-            let run = ((s - start) as usize + i) / per as usize;
+        if live == 0 {
+            return;
+        }
+        if !mixed {
+            lane_seeds = LaneSeeds::splat(&seeds);
+        }
+        let run_of = |i: usize| ((sample[i] - pixels[at[i]].start) / per) as usize * n + at[i];
+        if live < MIN_LANES {
+            // Sample by sample through the scalar integrator: the same sums in the same order.
+            for i in 0..live {
+                let (j, px) = (run_of(i), pixels[at[i]]);
+                crate::integrator::render_samples(
+                    scene,
+                    p,
+                    v,
+                    px.x,
+                    y,
+                    sample[i],
+                    1,
+                    &mut sum[j],
+                    &mut sum_sq[j],
+                    &mut primary[at[i]],
+                );
+            }
+            continue;
+        }
+        let mask = M::from_array(core::array::from_fn(|i| i < live));
+        let pixel = U::from_array(x) + U::splat(y * p.width);
+        let rng = LaneSampler::new(p.sampler, pixel, U::from_array(sample), p.seed, lane_seeds);
+        let px = F::from_array(core::array::from_fn(|i| x[i] as f32));
+        let (radiance, first) = trace_paths(scene, p, v, px, y, rng, mask);
+        // Summed in lane order: each pixel's samples in sample order, as the scalar integrator
+        // sums them.
+        for i in 0..live {
+            if sample[i] == 0 {
+                primary[at[i]] = first[i];
+            }
+            let j = run_of(i);
             let (l, bad) = sanitize(radiance.lane(i), false);
-            sum[run] += Vec4::new(l.x, l.y, l.z, if bad { 1.0 } else { 0.0 });
-            sum_sq[run] += Vec4::new(l.x * l.x, l.y * l.y, l.z * l.z, 0.0);
+            sum[j] += Vec4::new(l.x, l.y, l.z, if bad { 1.0 } else { 0.0 });
+            sum_sq[j] += Vec4::new(l.x * l.x, l.y * l.y, l.z * l.z, 0.0);
         }
-        s += n;
     }
 }
 
@@ -262,14 +318,14 @@ pub(super) fn gather(scene: &SceneView, triangle: &[u32; LANES], live: M) -> Gat
     }
 }
 
-/// `integrator::trace_path` for the live lanes' samples of pixel (px, py): their radiance, and
-/// the triangle each camera ray hit first.
+/// `integrator::trace_path` for the live lanes' samples, lane i's of pixel (px[i], py): their
+/// radiance, and the triangle each camera ray hit first.
 #[inline(always)]
 fn trace_paths(
     scene: &SceneView,
     p: &RenderParams,
     v: Variant,
-    px: u32,
+    px: F,
     py: u32,
     mut rng: LaneSampler,
     live: M,
@@ -277,7 +333,7 @@ fn trace_paths(
     let zero = F::splat(0.0);
     let (jx, jy) = rng.next_2d();
     let mut origin = V3::splat(xyz(p.eye));
-    let mut dir = primary_direction(p, F::splat(px as f32) + jx, F::splat(py as f32) + jy);
+    let mut dir = primary_direction(p, px + jx, F::splat(py as f32) + jy);
     let mut beta = V3::splat(Vec3::ONE);
     let mut radiance = V3::ZERO;
     let mut bsdf_pdf = zero;

@@ -1,14 +1,15 @@
-//! The CPU's integrator over sixteen samples of one pixel at a time, one sample per SIMD lane.
+//! The CPU's integrator over sixteen samples at a time (of one pixel, or of a few neighbours in
+//! a row), one sample per SIMD lane.
 //!
 //! Mitsuba 3's LLVM backend runs a path tracer's arithmetic for a wavefront of samples in the
 //! lanes of a vector register, a pixel's samples in adjacent lanes (its `SamplingIntegrator`),
 //! and hands Embree the rays as packets. The scalar integrator (`crate::integrator`) runs one
 //! sample at a time, and on small scenes about half of a sample's time is that arithmetic:
 //! the sampler's hashes and scrambles, the camera, warps, hit points, ray offsets and MIS
-//! weights. Here the sixteen samples of a pixel advance in lockstep, vertex by vertex: every
-//! such step is one instruction for all of them (an AVX-512 register holds sixteen f32), and
-//! only the traversal, the table lookups (triangles, materials, lights) and the BSDFs other than
-//! Lambertian run lane by lane.
+//! weights. Here sixteen samples advance in lockstep, vertex by vertex: every such step is one
+//! instruction for all of them (an AVX-512 register holds sixteen f32), and only the traversal,
+//! the table lookups (triangles, materials, lights) and the BSDFs other than Lambertian run lane
+//! by lane.
 //!
 //! Each lane computes exactly the operations the scalar integrator computes for its sample,
 //! in the same order (`+ − × ÷ sqrt` are correctly rounded lane by lane, and nothing is

@@ -1,18 +1,18 @@
-//! `rng::Sampler` for sixteen samples of one pixel: lane i draws what `Sampler` draws for its
-//! sample, set by set. The samples of one pixel share the Sobol sets' seeds (`PixelSeeds`), and
-//! paths in lockstep draw the same set at the same time, so only the sample index differs
-//! between lanes: the scrambles, the Sobol matrices and the hashes are integer operations on
-//! sixteen indices at once.
+//! `rng::Sampler` for sixteen samples: lane i draws what `Sampler` draws for its pixel and
+//! sample, set by set. Paths in lockstep draw the same set at the same time, so only the pixel
+//! (its Sobol sets' seeds, `PixelSeeds`, one row per set) and the sample index differ between
+//! lanes: the scrambles, the Sobol matrices and the hashes are integer operations on sixteen
+//! lanes at once.
 use super::{F, U};
 use crate::rng::{PixelSeeds, GROUP_KEY, SAMPLER_SOBOL, SOBOL_SETS};
 use core::simd::cmp::SimdPartialEq;
 use core::simd::num::SimdUint;
 use core::simd::Select;
 
-/// `sobol::laine_karras`, lane by lane.
+/// `sobol::laine_karras`, lane by lane, each lane with its own seed.
 #[inline(always)]
-fn laine_karras(x: U, seed: u32) -> U {
-    let mut x = x + U::splat(seed);
+fn laine_karras(x: U, seed: U) -> U {
+    let mut x = x + seed;
     x ^= x * U::splat(0x6c50_b47c);
     x ^= x * U::splat(0xb82f_1e52);
     x ^= x * U::splat(0xc7af_e638);
@@ -60,9 +60,9 @@ pub fn unit(x: U) -> F {
 
 /// `sobol::scrambled_sobol2` and the third coordinate of `scrambled_sobol3` when `three`.
 #[inline(always)]
-fn scrambled_sobol(reversed: U, seeds: ([u32; 4], u32), three: bool) -> [U; 3] {
+fn scrambled_sobol(reversed: U, seeds: &([U; 4], U), three: bool) -> [U; 3] {
     let (s, zero) = seeds;
-    let shuffled = laine_karras(reversed, s[0]) ^ U::splat(zero);
+    let shuffled = laine_karras(reversed, s[0]) ^ *zero;
     // `sobol2_reversed`: dimension 0 is the index itself, dimension 1 its superset sums.
     let x0 = shuffled.reverse_bits();
     let x1 = superset_sum(x0);
@@ -87,24 +87,62 @@ fn scrambled_sobol(reversed: U, seeds: ([u32; 4], u32), three: bool) -> [U; 3] {
     ]
 }
 
-/// The sampler of sixteen samples of one pixel: lane i is `Sampler::new(kind, pixel,
-/// sample[i], seed)`.
+/// The Sobol sets' seeds and scrambled zeros of each lane's pixel (`PixelSeeds`), as rows: set
+/// `s`'s four seeds and zero for the sixteen lanes.
+#[derive(Clone, Copy)]
+pub struct LaneSeeds {
+    sets: [([U; 4], U); SOBOL_SETS as usize],
+}
+
+impl LaneSeeds {
+    /// Every lane with the seeds of one pixel.
+    #[inline(always)]
+    pub fn splat(seeds: &PixelSeeds) -> Self {
+        let mut lanes = Self { sets: [([U::splat(0); 4], U::splat(0)); SOBOL_SETS as usize] };
+        for set in 0..SOBOL_SETS {
+            let (s, zero) = seeds.of_set(set);
+            lanes.sets[set as usize] = (s.map(U::splat), U::splat(zero));
+        }
+        lanes
+    }
+
+    /// Lane `lane` takes the seeds of its pixel, `seeds`.
+    #[inline(always)]
+    pub fn set_lane(&mut self, lane: usize, seeds: &PixelSeeds) {
+        for set in 0..SOBOL_SETS {
+            let (s, zero) = seeds.of_set(set);
+            let row = &mut self.sets[set as usize];
+            for (r, v) in row.0.iter_mut().zip(s) {
+                r[lane] = v;
+            }
+            row.1[lane] = zero;
+        }
+    }
+
+    /// Set `set`'s rows (the last set's for any later one), as `PixelSeeds::of_set`.
+    #[inline(always)]
+    fn of_set(&self, set: u32) -> &([U; 4], U) {
+        &self.sets[(set as usize).min(SOBOL_SETS as usize - 1)]
+    }
+}
+
+/// The sampler of sixteen samples: lane i is `Sampler::new(kind, pixel[i], sample[i], seed)`.
 #[derive(Clone, Copy)]
 pub struct LaneSampler {
     kind: u32,
-    pixel: u32,
+    pixel: U,
     seed: u32,
     set: u32,
     sample: U,
     reversed: U,
-    seeds: PixelSeeds,
+    seeds: LaneSeeds,
 }
 
 impl LaneSampler {
-    /// The samples `sample` of pixel `pixel`, whose seeds are `seeds` (`PixelSeeds::new(kind,
-    /// pixel, seed)`).
+    /// The samples `sample` of pixels `pixel` (lane by lane), whose seeds are `seeds` (lane i
+    /// holding `PixelSeeds::new(kind, pixel[i], seed)`).
     #[inline(always)]
-    pub fn new(kind: u32, pixel: u32, sample: U, seed: u32, seeds: PixelSeeds) -> Self {
+    pub fn new(kind: u32, pixel: U, sample: U, seed: u32, seeds: LaneSeeds) -> Self {
         Self { kind, pixel, seed, set: 0, sample, reversed: sample.reverse_bits(), seeds }
     }
 
@@ -113,7 +151,7 @@ impl LaneSampler {
         let bits = if (self.kind == SAMPLER_SOBOL) & (self.set < SOBOL_SETS) {
             scrambled_sobol(self.reversed, self.seeds.of_set(self.set), three)
         } else {
-            let h = pcg4d(U::splat(self.pixel), self.sample, U::splat(self.set), U::splat(self.seed));
+            let h = pcg4d(self.pixel, self.sample, U::splat(self.set), U::splat(self.seed));
             [h[0], h[1], h[2]]
         };
         self.set += 1;
@@ -137,7 +175,7 @@ impl LaneSampler {
     /// `Sampler::group_bits`, lane by lane.
     #[inline(always)]
     pub fn group_bits(&self, tag: u32, size: u32) -> U {
-        pcg4d(U::splat(self.pixel), self.sample / U::splat(size), U::splat(tag), U::splat(self.seed ^ GROUP_KEY))[0]
+        pcg4d(self.pixel, self.sample / U::splat(size), U::splat(tag), U::splat(self.seed ^ GROUP_KEY))[0]
     }
 
     /// The lanes' sample indices.
@@ -146,10 +184,16 @@ impl LaneSampler {
         self.sample
     }
 
+    /// Whether every lane draws for the same pixel.
+    #[inline(always)]
+    pub fn one_pixel(&self) -> bool {
+        self.pixel.simd_eq(U::splat(self.pixel[0])).all()
+    }
+
     /// Four uniforms of a hash keyed by `tag`, independent of every set.
     #[inline(always)]
     pub fn independent_4d(&self, tag: u32) -> [F; 4] {
-        let h = pcg4d(U::splat(self.pixel), self.sample, U::splat(tag), U::splat(self.seed ^ 0x5bd1_e995));
+        let h = pcg4d(self.pixel, self.sample, U::splat(tag), U::splat(self.seed ^ 0x5bd1_e995));
         [unit(h[0]), unit(h[1]), unit(h[2]), unit(h[3])]
     }
 
@@ -158,7 +202,7 @@ impl LaneSampler {
     #[inline(always)]
     pub fn independent_after(&self) -> F {
         let set = U::splat(self.set.wrapping_sub(1));
-        unit(pcg4d(U::splat(self.pixel), self.sample, set, U::splat(self.seed))[3])
+        unit(pcg4d(self.pixel, self.sample, set, U::splat(self.seed))[3])
     }
 }
 
@@ -167,16 +211,38 @@ mod tests {
     use super::*;
     use crate::rng::{pcg4d as pcg4d_scalar, Sampler, SAMPLER_INDEPENDENT};
 
+    /// Each lane draws its own pixel's and sample's numbers: lanes of one pixel (its seeds
+    /// splatted) and lanes of several pixels (set lane by lane), as a group of a pass of few
+    /// samples holds.
     #[test]
     fn lanes_draw_what_the_scalar_sampler_draws() {
         for kind in [SAMPLER_SOBOL, SAMPLER_INDEPENDENT] {
-            for (pixel, seed, first) in
-                [(0u32, 0u32, 0u32), (77, 3, 16), (65_535, 0xdead, 1_000_003), (5, 1, u32::MAX - 15)]
-            {
+            for (pixel, seed, first, spread) in [
+                (0u32, 0u32, 0u32, 0u32),
+                (77, 3, 16, 0),
+                (65_535, 0xdead, 1_000_003, 0),
+                (5, 1, u32::MAX - 15, 0),
+                (9, 4, 0, 1),
+                (1_000, 17, 40, 3),
+            ] {
                 let samples = U::from_array(core::array::from_fn(|i| first.wrapping_add(i as u32 * 7)));
-                let seeds = PixelSeeds::new(kind, pixel, seed);
-                let mut lanes = LaneSampler::new(kind, pixel, samples, seed, seeds);
-                let mut scalar: [Sampler; 16] = core::array::from_fn(|i| Sampler::new(kind, pixel, samples[i], seed));
+                let pixels = U::from_array(core::array::from_fn(|i| pixel + spread * (i as u32 / 3)));
+                let mut seeds = LaneSeeds::splat(&PixelSeeds::new(kind, pixel, seed));
+                if spread != 0 {
+                    for i in 0..16 {
+                        seeds.set_lane(i, &PixelSeeds::new(kind, pixels[i], seed));
+                    }
+                }
+                let mut lanes = LaneSampler::new(kind, pixels, samples, seed, seeds);
+                assert_eq!(lanes.one_pixel(), spread == 0);
+                let mut scalar: [Sampler; 16] =
+                    core::array::from_fn(|i| Sampler::new(kind, pixels[i], samples[i], seed));
+                let (group, light) = (lanes.group_bits(11, 16), lanes.independent_4d(5));
+                for (i, s) in scalar.iter().enumerate() {
+                    assert_eq!(group[i], s.group_bits(11, 16), "{kind} {pixel} {i}");
+                    let l = s.independent_4d(5);
+                    assert_eq!(light.map(|f| f[i].to_bits()), l.map(f32::to_bits), "{kind} {pixel} {i}");
+                }
                 for set in 0..(SOBOL_SETS + 3) {
                     if set % 2 == 0 {
                         let (a, b) = lanes.next_2d();

@@ -5,8 +5,8 @@ use super::sampler::LaneSampler;
 use super::warp::{cosine_hemisphere, offset_ray_origin, orthonormal_basis, power_heuristic3, weights};
 use super::{sqrt, F, LANES, M, U, V3};
 use crate::connection::{
-    pool_candidates, CONNECT_TAG, POOL_BLOCK, POOL_CANDIDATES, POOL_FIELDS, POOL_PICK_TAG, POOL_SAMPLES, POOL_SLOTS,
-    POOL_STRIDE, POOL_WINDOW_BITS, POOL_WINDOW_TAG,
+    pool_candidates, CONNECT_TAG, POOL_BLOCK, POOL_CANDIDATES, POOL_PICK_TAG, POOL_SAMPLES, POOL_SLOTS, POOL_STRIDE,
+    POOL_WINDOW_BITS, POOL_WINDOW_TAG,
 };
 use crate::layout::{RenderParams, LIGHT_NOT_TRIANGLE, NO_HIT};
 use crate::sampling::INV_PI;
@@ -181,16 +181,12 @@ pub(super) fn connect(
     *radiance = V3::select(open, *radiance + added, *radiance);
 }
 
-/// Rows of `POOL_STRIDE` slots in one field of a block.
-const BLOCK_ROWS: usize = (POOL_SLOTS / POOL_STRIDE) as usize;
-/// Rows in a group's two blocks.
-const GROUP_ROWS: usize = 2 * POOL_FIELDS * BLOCK_ROWS;
-
 /// `crate::connection::connect_pooled` for sixteen eye vertices: each lane weighs its own
 /// candidates from its own block's pool, picks one and casts its shadow ray; the same sums bit
-/// for bit. Sixteen samples that make one group of `POOL_STRIDE` read a field of their
-/// candidates `j` as two runs of eight floats (samples `8k ..` and `8k + 8 ..` lie in two
-/// blocks of `POOL_SAMPLES`); other lanes gather.
+/// for bit. Where each half of the group (lanes 0..8, 8..16) holds one block of one pixel,
+/// eight consecutive samples from a multiple of `POOL_SAMPLES` (a pixel's sixteen samples, or
+/// two pixels' eight), the half reads a field of its candidates `j` as one run of eight floats:
+/// its samples share a window and their slots follow each other. Other groups gather.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 pub(super) fn connect_pooled(
@@ -216,32 +212,39 @@ pub(super) fn connect_pooled(
     let sample = rng.sample();
     let lane = sample % U::splat(POOL_STRIDE);
     let base = (sample / U::splat(POOL_SAMPLES) - U::splat(scene.light_pool.first_block)) * U::splat(POOL_BLOCK as u32);
-    // One group: lane `i` holds sample `16k + i` of one pixel (whose window every lane shares).
-    let s0 = sample[0];
-    let grouped = s0.is_multiple_of(POOL_STRIDE)
-        & (sample == U::splat(s0) + U::from_array(core::array::from_fn(|i| i as u32)))
-        && rng.one_pixel();
+    // Each half one block of one pixel: lane `8h + i` holds sample `8k + i` of the half's pixel.
+    const HALF: usize = LANES / 2;
+    const _: () = assert!(POOL_SAMPLES as usize == HALF);
+    let pixel = rng.pixel();
+    let step = U::from_array(core::array::from_fn(|i| (i % HALF) as u32));
+    let firsts = U::from_array(core::array::from_fn(|i| sample[i / HALF * HALF]));
+    let pixels = U::from_array(core::array::from_fn(|i| pixel[i / HALF * HALF]));
+    let halves = (sample == firsts + step)
+        & (pixel == pixels)
+        & sample[0].is_multiple_of(POOL_SAMPLES)
+        & sample[HALF].is_multiple_of(POOL_SAMPLES);
     let enable = live.cast::<isize>();
     // Field `f` of each lane's candidate in slot `at` (the window's row plus the lane).
     let gathered = |at: U, f: usize| {
         let i = (base + U::splat((f * POOL_SLOTS as usize) as u32) + at).cast::<usize>();
         F::gather_select(records, enable, i, zero)
     };
-    // The group's two blocks (samples `16k ..` and `16k + 8 ..` are consecutive blocks), where
-    // both are in the pool, as rows of `POOL_STRIDE` slots, a fixed length, so that reading a
-    // row needs no bounds check.
-    let group: Option<&[[f32; LANES]; GROUP_ROWS]> = if grouped {
-        let lo = base[0] as usize;
-        records.get(lo..lo + 2 * POOL_BLOCK).and_then(|r| r.as_chunks::<LANES>().0.try_into().ok())
-    } else {
-        None
+    // Each half's block, where both halves are runs and their blocks in the pool, a fixed
+    // length, so that a run's bounds are known.
+    let block = |h: usize| {
+        let lo = base[h * HALF] as usize;
+        records.get(lo..lo + POOL_BLOCK).and_then(|r| <&[f32; POOL_BLOCK]>::try_from(r).ok())
     };
-    // Field `f` of the group's candidates in row `row` of the window: the first block's slots for
-    // lanes 0..8, the second's for lanes 8..16.
-    let second = M::from_array(core::array::from_fn(|i| i >= LANES / 2));
-    let rows = |rows: &[[f32; LANES]; GROUP_ROWS], row: usize, f: usize| {
-        let at = f * BLOCK_ROWS + (row / LANES) % BLOCK_ROWS;
-        second.select(F::from_array(rows[POOL_FIELDS * BLOCK_ROWS + at]), F::from_array(rows[at]))
+    let blocks = if halves { block(0).zip(block(1)) } else { None };
+    // Field `f` of each half's candidates in slots `at` (the window's row plus the lane): one run
+    // of eight floats from the half's first lane's slot.
+    let runs = |(b0, b1): (&[f32; POOL_BLOCK], &[f32; POOL_BLOCK]), at: U, f: usize| {
+        let mut v = [0.0f32; LANES];
+        for (h, b) in [b0, b1].into_iter().enumerate() {
+            let i = f * POOL_SLOTS as usize + (at[h * HALF] as usize & (POOL_SLOTS as usize - HALF));
+            v[h * HALF..][..HALF].copy_from_slice(&b[i..][..HALF]);
+        }
+        F::from_array(v)
     };
     // Each candidate's weight and geometry term; the picked one's contribution and side are
     // made again from its record after the pick, by the same operations, so the loop keeps
@@ -253,9 +256,9 @@ pub(super) fn connect_pooled(
     let candidates = pool_candidates(bounce);
     for j in 0..candidates {
         let row = (window + U::splat(POOL_STRIDE * j as u32)) & U::splat(POOL_SLOTS - 1);
-        let (row0, at) = (row[0] as usize, row + lane);
-        let field = |f: usize| match group {
-            Some(g) => rows(g, row0, f),
+        let at = row + lane;
+        let field = |f: usize| match blocks {
+            Some(b) => runs(b, at, f),
             None => gathered(at, f),
         };
         let y = V3::new(field(0), field(1), field(2));

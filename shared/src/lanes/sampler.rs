@@ -184,10 +184,10 @@ impl LaneSampler {
         self.sample
     }
 
-    /// Whether every lane draws for the same pixel.
+    /// The lanes' pixels.
     #[inline(always)]
-    pub fn one_pixel(&self) -> bool {
-        self.pixel.simd_eq(U::splat(self.pixel[0])).all()
+    pub fn pixel(&self) -> U {
+        self.pixel
     }
 
     /// Four uniforms of a hash keyed by `tag`, independent of every set.
@@ -234,7 +234,7 @@ mod tests {
                     }
                 }
                 let mut lanes = LaneSampler::new(kind, pixels, samples, seed, seeds);
-                assert_eq!(lanes.one_pixel(), spread == 0);
+                assert_eq!(lanes.pixel(), pixels);
                 let mut scalar: [Sampler; 16] =
                     core::array::from_fn(|i| Sampler::new(kind, pixels[i], samples[i], seed));
                 let (group, light) = (lanes.group_bits(11, 16), lanes.independent_4d(5));

@@ -237,7 +237,8 @@ pub(super) fn connect_pooled(
     };
     let blocks = if halves { block(0).zip(block(1)) } else { None };
     // Field `f` of each half's candidates in slots `at` (the window's row plus the lane): one run
-    // of eight floats from the half's first lane's slot.
+    // of eight floats from the half's first lane's slot. That slot is a multiple of eight, at most
+    // `POOL_SLOTS - 8`, already; the mask changes nothing and only bounds the index.
     let runs = |(b0, b1): (&[f32; POOL_BLOCK], &[f32; POOL_BLOCK]), at: U, f: usize| {
         let mut v = [0.0f32; LANES];
         for (h, b) in [b0, b1].into_iter().enumerate() {

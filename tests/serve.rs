@@ -113,8 +113,11 @@ fn frames_arrive_and_the_last_equals_the_cli_render() {
         return;
     }
     let (a, b) = (box_scene(), glass_scene());
-    let server = Server::start(&[a.to_str().unwrap(), b.to_str().unwrap()]);
     let dir = scratch("frames");
+    // A triangle that nothing lights: the page is told so, as the command line says it.
+    let dark = dir.join("unlit.obj");
+    std::fs::write(&dark, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    let server = Server::start(&[a.to_str().unwrap(), b.to_str().unwrap(), dark.to_str().unwrap()]);
     runtime().block_on(async {
         let (status, page) = server.get("/").await;
         assert!(status.contains("200"), "GET / answered {status}");
@@ -125,10 +128,18 @@ fn frames_arrive_and_the_last_equals_the_cli_render() {
         let mut c = server.connect().await;
         let hello = c.next_of("hello", 10.0).await;
         let scenes = hello["scenes"].as_array().unwrap();
-        assert_eq!(scenes.len(), 2);
+        assert_eq!(scenes.len(), 3);
         assert_eq!(scenes[0]["name"], "CornellBox-Original.obj");
         assert_eq!(scenes[1]["name"], "cornell-glass.toml");
         assert!(scenes[1]["triangles"].as_u64().unwrap() > 0 && scenes[1]["nodes"].as_u64().unwrap() > 0);
+        for lit in &scenes[..2] {
+            assert_eq!(lit["warnings"], json!([]), "a lit scene came with warnings: {lit}");
+        }
+        let warnings = scenes[2]["warnings"].as_array().unwrap();
+        assert!(
+            warnings.len() == 1 && warnings[0].as_str().unwrap().starts_with("unlit.obj: nothing emits light"),
+            "the unlit scene's warnings: {warnings:?}"
+        );
 
         let request = json!({
             "type": "render", "scene": 1, "spp": 12, "bounces": 3, "width": 40, "height": 30, "seed": 7,

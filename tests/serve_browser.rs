@@ -1,7 +1,7 @@
 //! The page of `kdtrace serve` in real headless Chromium (`tests/web/browser.mjs`, Debian's
 //! `chromium` driven by npm's `playwright-core`, both installed by scripts/setup.sh): it loads,
-//! shows the scene within seconds, changes the view when dragged and draws a clicked pixel's
-//! path. Server, browser and test share a network namespace of their own (`common::netns`).
+//! shows the scene within seconds, changes the view when dragged, draws a clicked pixel's path
+//! and shows a scene's warnings. Server, browser and test share a network namespace of their own (`common::netns`).
 #[path = "common/netns.rs"]
 mod netns;
 #[path = "common/paths.rs"]
@@ -25,7 +25,12 @@ fn the_page_renders_moves_and_debugs_a_pixel_in_chromium() {
         "tests/web/node_modules lacks playwright-core: scripts/setup.sh installs it (npm ci in tests/web)"
     );
     let scene = mesh("CornellBox-Original/CornellBox-Original.obj");
-    let server = Server::start(&[scene.to_str().unwrap()]);
+    // A second scene that nothing lights: choosing it shows the warning beside the image.
+    let dir = std::env::temp_dir().join(format!("kdtrace-browser-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let dark = dir.join("unlit.obj");
+    std::fs::write(&dark, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    let server = Server::start(&[scene.to_str().unwrap(), dark.to_str().unwrap()]);
     let mut cmd = Command::new("node");
     cmd.arg(web.join("browser.mjs")).arg(format!("http://{}/", server.addr));
     if let Some(shot) = std::env::var_os("KDTRACE_SCREENSHOT") {

@@ -1,6 +1,7 @@
 // The page of `kdtrace serve` in real headless Chromium (Debian's package, driven by
 // playwright-core; nothing is downloaded): it loads, the canvas shows the scene, dragging changes
-// the view, clicking a pixel draws its path and lists its vertices. Run by tests/serve_browser.rs
+// the view, clicking a pixel draws its path and lists its vertices, a scene that nothing lights
+// says so. Run by tests/serve_browser.rs
 // inside a network namespace of its own:  node browser.mjs URL [SCREENSHOT.png]
 import { chromium } from "playwright-core";
 
@@ -87,11 +88,18 @@ try {
   if (!info.startsWith("Pixel (")) fail(`the pixel panel says ${JSON.stringify(info)}`);
   if (drawn !== rows) fail(`${rows} vertices listed but ${drawn} drawn`);
   if (!(ink > 20)) fail("the path is not drawn over the image");
+  // The lit scene has no warnings; choosing the second one, which nothing lights, shows why it
+  // renders black.
+  const quiet = await page.$eval("#warnings", (w) => w.textContent);
+  if (quiet !== "") fail(`the lit scene shows warnings: ${JSON.stringify(quiet)}`);
   if (screenshot) {
     await page.waitForTimeout(2000);
     await page.screenshot({ path: screenshot });
     step(`screenshot ${screenshot}`);
   }
+  await page.selectOption("#scene", "1");
+  await page.waitForFunction(() => document.getElementById("warnings").textContent.includes("nothing emits light"), null, { timeout: 10000 });
+  step(`unlit scene: ${await page.$eval("#warnings", (w) => w.textContent)}`);
   if (errors.length) fail("the page reported errors: " + errors.join("; "));
   console.log("PASS");
 } finally {

@@ -160,9 +160,9 @@ fn settings(a: &ImageArgs, loaded: &mut Loaded, scene: &Path) -> Result<RenderSe
     s.check()?;
     if s.aov == crate::settings::Aov::Radiance && !crate::render::features::lit(&loaded.compiled, &s) {
         eprintln!(
-            "warning: {}: nothing emits light (no emitting material, light or environment): the image is black; \
-             --environment R,G,B lights it from every direction",
-            scene.display()
+            "warning: {}: {}; --environment R,G,B lights it from every direction",
+            scene.display(),
+            crate::render::features::UNLIT
         );
     }
     Ok(s)

@@ -159,9 +159,12 @@ pub fn seen_light_share(c: &Compiled, s: &RenderSettings) -> f64 {
     share
 }
 
+/// What the command line and the web UI say of a scene that [`lit`] finds unlit.
+pub const UNLIT: &str = "nothing emits light (no emitting material, light or environment): the image is black";
+
 /// Whether anything lights the scene under settings `s`: an emitting triangle, a punctual
 /// light, an environment map or a constant environment that is not black. Without any, every
-/// radiance pixel is zero, which the command line warns of.
+/// radiance pixel is zero, which the command line and the web UI warn of ([`UNLIT`]).
 pub fn lit(c: &Compiled, s: &RenderSettings) -> bool {
     let scene = &c.scene;
     !scene.lights.is_empty()

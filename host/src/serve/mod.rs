@@ -187,6 +187,10 @@ fn load_scene(index: usize, path: &Path) -> Result<SceneEntry> {
     let (lo, hi) = c.world_bounds();
     let s = cpu.settings.resolve(lo, hi).with_context(|| path.display().to_string())?;
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| path.display().to_string());
+    let mut warnings = cpu.warnings.clone();
+    if !crate::render::features::lit(c, &s) {
+        warnings.push(format!("{name}: {}", crate::render::features::UNLIT));
+    }
     let info = SceneInfo {
         index,
         name,
@@ -207,6 +211,7 @@ fn load_scene(index: usize, path: &Path) -> Result<SceneEntry> {
         },
         bounds_min: lo.to_array(),
         bounds_max: hi.to_array(),
+        warnings,
     };
     Ok(SceneEntry { path: path.to_path_buf(), cpu, gpu: OnceLock::new(), info })
 }

@@ -109,6 +109,9 @@ pub struct SceneInfo {
     /// The scene's bounds in world coordinates, for camera controls.
     pub bounds_min: [f64; 3],
     pub bounds_max: [f64; 3],
+    /// What loading found amiss (the command line's warnings), and whether nothing lights the
+    /// scene: the page shows them beside the image.
+    pub warnings: Vec<String>,
 }
 
 #[derive(Serialize, Debug, Clone, Copy)]

@@ -74,6 +74,8 @@ function chooseScene(i) {
   camera = { eye: s.camera.eye.slice(), target: s.camera.target.slice(), up: s.camera.up.slice(), fov: s.camera.fov };
   $("fov").value = camera.fov;
   $("stat-scene").textContent = `${s.nodes.toLocaleString()} k-d nodes, depth ${s.tree_depth}, ${s.lights} light triangles`;
+  // What loading found amiss, and a scene that nothing lights: said once, beside the image.
+  $("warnings").textContent = s.warnings.map((w) => `warning: ${w}`).join("\n");
   clearPath();
   render();
 }

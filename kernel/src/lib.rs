@@ -4,7 +4,8 @@
 //! for all of them); an entry point that does not touch a buffer still names it. The binding
 //! numbers and workgroup sizes are `shared::layout::binding` and its group sizes, written out as
 //! literals because `#[spirv(...)]` takes no constants; the host's test
-//! `kernel_bindings_match_the_layout` checks them.
+//! `kernel_bindings_match_the_layout` checks them. Every binding is a storage buffer, the
+//! parameters too (`shared::layout::binding::PARAMS` says why).
 //!
 //! The render entry points take the integrator's variant as specialisation constants (ids and
 //! defaults: `shared::features::spec_id`, `FEATURES_ALL`, `FROM_PARAMS`; literals for the same
@@ -58,7 +59,7 @@ pub fn render_pass(
     #[spirv(spec_constant(id = 0, default = 32767))] features: u32,
     #[spirv(spec_constant(id = 1, default = 4294967295))] max_bounces: u32,
     #[spirv(spec_constant(id = 2, default = 4294967295))] rr_start: u32,
-    #[spirv(uniform, descriptor_set = 0, binding = 0)] params: &RenderParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &RenderParams,
     #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] nodes: &[KdNode],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] indices: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] triangles: &[Triangle],
@@ -96,7 +97,7 @@ pub fn render_persistent(
     #[spirv(spec_constant(id = 0, default = 32767))] features: u32,
     #[spirv(spec_constant(id = 1, default = 4294967295))] max_bounces: u32,
     #[spirv(spec_constant(id = 2, default = 4294967295))] rr_start: u32,
-    #[spirv(uniform, descriptor_set = 0, binding = 0)] params: &RenderParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &RenderParams,
     #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] nodes: &[KdNode],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] indices: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] triangles: &[Triangle],
@@ -157,7 +158,7 @@ pub fn render_list(
     #[spirv(spec_constant(id = 0, default = 32767))] features: u32,
     #[spirv(spec_constant(id = 1, default = 4294967295))] max_bounces: u32,
     #[spirv(spec_constant(id = 2, default = 4294967295))] rr_start: u32,
-    #[spirv(uniform, descriptor_set = 0, binding = 0)] params: &RenderParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &RenderParams,
     #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] nodes: &[KdNode],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] indices: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] triangles: &[Triangle],
@@ -189,7 +190,7 @@ pub fn render_list(
 #[allow(clippy::too_many_arguments)]
 pub fn cast_rays(
     #[spirv(global_invocation_id)] id: UVec3,
-    #[spirv(uniform, descriptor_set = 0, binding = 0)] params: &RenderParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &RenderParams,
     #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] nodes: &[KdNode],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] indices: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] triangles: &[Triangle],
@@ -220,7 +221,7 @@ pub fn cast_rays(
 pub fn trace_pool(
     #[spirv(global_invocation_id)] id: UVec3,
     #[spirv(num_workgroups)] groups: UVec3,
-    #[spirv(uniform, descriptor_set = 0, binding = 0)] params: &RenderParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &RenderParams,
     #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] nodes: &[KdNode],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] indices: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] triangles: &[Triangle],

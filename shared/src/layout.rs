@@ -465,6 +465,10 @@ pub struct RayResult {
 /// `kernel_bindings_match_the_layout` reads the kernel's source and checks every one against
 /// this table (and the workgroup sizes below).
 pub mod binding {
+    /// The pass's `RenderParams` (read-only). A storage buffer, not a uniform one: lavapipe
+    /// compiles a shader again, whole, for each new set of values of the uniforms that steer its
+    /// control flow (its "inlined uniforms"), so uniform parameters cost a compile of tens of
+    /// seconds for every render, pass and seed that changes them.
     pub const PARAMS: u32 = 0;
     pub const NODES: u32 = 1;
     pub const INDICES: u32 = 2;
@@ -493,9 +497,9 @@ pub mod binding {
     /// The pools of light subpaths of the blocks a pass's samples draw from
     /// (`connection::LightPool`), written by `trace_pool` and read by the render entry points.
     pub const POOL: u32 = 17;
-    /// Bindings in all: the uniform parameters, then storage buffers.
+    /// Bindings in all, every one a storage buffer.
     pub const COUNT: u32 = 18;
-    /// Storage bindings the kernel writes; every other storage binding is read-only.
+    /// The bindings the kernel writes; every other binding is read-only.
     pub const WRITABLE: [u32; 6] = [ACCUM, PRIMARY, RESULTS, QUEUE, ACCUM_SQ, POOL];
 }
 

@@ -78,11 +78,8 @@ fn bind_group_layout_entries() -> Vec<wgpu::BindGroupLayoutEntry> {
             binding: b,
             visibility: wgpu::ShaderStages::COMPUTE,
             ty: wgpu::BindingType::Buffer {
-                ty: if b == binding::PARAMS {
-                    wgpu::BufferBindingType::Uniform
-                } else {
-                    wgpu::BufferBindingType::Storage { read_only: !binding::WRITABLE.contains(&b) }
-                },
+                // The parameters too (`binding::PARAMS`: lavapipe recompiles for new uniforms).
+                ty: wgpu::BufferBindingType::Storage { read_only: !binding::WRITABLE.contains(&b) },
                 has_dynamic_offset: false,
                 min_binding_size: None,
             },
@@ -168,7 +165,7 @@ impl Gpu {
     fn from_adapter(adapter: wgpu::Adapter) -> Result<Self> {
         let info = adapter.get_info();
         let limits = adapter.limits();
-        let storage = binding::COUNT - 1;
+        let storage = binding::COUNT;
         if limits.max_storage_buffers_per_shader_stage < storage {
             bail!(
                 "adapter {:?} allows {} storage buffers per stage; the kernel needs {storage}",
@@ -295,7 +292,7 @@ impl Gpu {
         let params = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("params"),
             size: std::mem::size_of::<RenderParams>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
         Ok(SceneBuffers {

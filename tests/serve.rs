@@ -115,8 +115,7 @@ fn frames_arrive_and_the_last_equals_the_cli_render() {
     let (a, b) = (box_scene(), glass_scene());
     let dir = scratch("frames");
     // A triangle that nothing lights: the page is told so, as the command line says it.
-    let dark = dir.join("unlit.obj");
-    std::fs::write(&dark, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    let dark = server::unlit_scene(&dir);
     let server = Server::start(&[a.to_str().unwrap(), b.to_str().unwrap(), dark.to_str().unwrap()]);
     runtime().block_on(async {
         let (status, page) = server.get("/").await;

@@ -10,6 +10,13 @@ use tokio::net::TcpStream;
 use tokio_tungstenite::tungstenite::Message;
 use tokio_tungstenite::{MaybeTlsStream, WebSocketStream};
 
+/// `dir/unlit.obj`: one triangle and nothing that emits light, a scene the server must warn of.
+pub fn unlit_scene(dir: &std::path::Path) -> std::path::PathBuf {
+    let path = dir.join("unlit.obj");
+    std::fs::write(&path, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    path
+}
+
 pub struct Server {
     child: Child,
     /// host:port it listens on.

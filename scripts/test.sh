@@ -9,4 +9,18 @@ scripts/setup.sh --tests
 # warning an error (the kernel builds for SPIR-V only).
 cargo fmt --all --check
 cargo clippy --release --workspace --exclude kernel --all-targets -- -D warnings
-cargo test --release --workspace --exclude kernel --no-fail-fast "$@"
+# lavapipe's LLVM optimisation passes are most of a GPU test's time on a fresh machine: a test
+# renders a few small images, and lavapipe compiles each of its pipelines (entry point and
+# variant) once, 14-100 s of single-threaded work with the passes. Without them (gallivm's
+# `nopt`) the shaders compile 2-2.5 times faster and run about half as fast; the images are the same bit
+# for bit (the tests compare them with the CPU's). BENCHMARKS.md, "One compile per pipeline".
+export GALLIVM_PERF="${GALLIVM_PERF:-nopt}"
+if cargo nextest --version >/dev/null 2>&1; then
+  # One process per test and two tests at a time across all test binaries, so that a binary's one
+  # long lavapipe compile does not leave the other core idle, as `cargo test` (one binary at a
+  # time) does. nextest runs no doctests: `cargo test --doc` does.
+  cargo nextest run --release --workspace --exclude kernel --no-fail-fast "$@"
+  if [ $# -eq 0 ]; then cargo test --release --workspace --exclude kernel --doc; fi
+else
+  cargo test --release --workspace --exclude kernel --no-fail-fast "$@"
+fi

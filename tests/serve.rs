@@ -13,16 +13,10 @@ mod server;
 use netns::isolate;
 use paths::{mesh, repo};
 use serde_json::{json, Value};
-use server::{Incoming, Server};
+use server::{scratch, Incoming, Server};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::{Duration, Instant};
-
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("kdtrace-serve-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
 
 fn box_scene() -> PathBuf {
     mesh("CornellBox-Original/CornellBox-Original.obj")

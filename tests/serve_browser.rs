@@ -26,9 +26,7 @@ fn the_page_renders_moves_and_debugs_a_pixel_in_chromium() {
     );
     let scene = mesh("CornellBox-Original/CornellBox-Original.obj");
     // A second scene that nothing lights: choosing it shows the warning beside the image.
-    let dir = std::env::temp_dir().join(format!("kdtrace-browser-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let dark = server::unlit_scene(&dir);
+    let dark = server::unlit_scene(&server::scratch("browser"));
     let server = Server::start(&[scene.to_str().unwrap(), dark.to_str().unwrap()]);
     let mut cmd = Command::new("node");
     cmd.arg(web.join("browser.mjs")).arg(format!("http://{}/", server.addr));

@@ -10,6 +10,13 @@ use tokio::net::TcpStream;
 use tokio_tungstenite::tungstenite::Message;
 use tokio_tungstenite::{MaybeTlsStream, WebSocketStream};
 
+/// A fresh folder for a server test's files, named for this process and `name`.
+pub fn scratch(name: &str) -> std::path::PathBuf {
+    let d = std::env::temp_dir().join(format!("kdtrace-serve-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
 /// `dir/unlit.obj`: one triangle and nothing that emits light, a scene the server must warn of.
 pub fn unlit_scene(dir: &std::path::Path) -> std::path::PathBuf {
     let path = dir.join("unlit.obj");

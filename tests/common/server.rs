@@ -17,10 +17,11 @@ pub fn scratch(name: &str) -> std::path::PathBuf {
     d
 }
 
-/// `dir/unlit.obj`: one triangle and nothing that emits light, a scene the server must warn of.
+/// `dir/unlit.obj`: one triangle and nothing that emits light, a scene the server must warn of,
+/// and a second triangle of zero area, which the loader drops with a warning naming the file.
 pub fn unlit_scene(dir: &std::path::Path) -> std::path::PathBuf {
     let path = dir.join("unlit.obj");
-    std::fs::write(&path, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    std::fs::write(&path, "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\nf 1 2 3\nf 1 2 4\n").unwrap();
     path
 }
 

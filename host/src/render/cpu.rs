@@ -46,15 +46,32 @@ macro_rules! variants {
     ($($bits:literal)*) => {
         #[cfg_attr(not(test), allow(dead_code))]
         const CANONICAL: [u32; 68] = [$($bits),*];
-        static VARIANTS: [VariantFn; 68] = [$(render_pixels_for::<$bits> as VariantFn),*];
+        static VARIANTS: [VariantFn; 68] = [$(render_pixels_for::<{ compiled($bits) }> as VariantFn),*];
         /// The same variants compiled for AVX-512 (`avx512::render_samples`).
         #[cfg(target_arch = "x86_64")]
-        static VARIANTS_AVX512: [VariantFn; 68] = [$(avx512::render_samples::<$bits> as VariantFn),*];
-        static LANE_VARIANTS: [VariantFn; 68] = [$(lanes_render_pixels_for::<$bits> as VariantFn),*];
+        static VARIANTS_AVX512: [VariantFn; 68] =
+            [$(avx512::render_samples::<{ compiled($bits) }> as VariantFn),*];
+        static LANE_VARIANTS: [VariantFn; 68] = [$(lanes_render_pixels_for::<{ compiled($bits) }> as VariantFn),*];
         /// The same compiled for AVX-512 (`avx512::render_samples_lanes`).
         #[cfg(target_arch = "x86_64")]
-        static LANE_VARIANTS_AVX512: [VariantFn; 68] = [$(avx512::render_samples_lanes::<$bits> as VariantFn),*];
+        static LANE_VARIANTS_AVX512: [VariantFn; 68] =
+            [$(avx512::render_samples_lanes::<{ compiled($bits) }> as VariantFn),*];
     };
+}
+
+/// The feature bits a table's entry is compiled for: `bits`, except in this library's own unit
+/// tests, where every entry is the variant with every bit (the generic code, which renders every
+/// scene's image bit for bit as its own variant does). No unit test renders through the tables;
+/// the tests in `tests/` link the library as built and check each variant's image against the
+/// generic one. The tables are four times 68 monomorphs of the integrator, most of the library's
+/// machine code: compiled a second time for the unit tests' build, they doubled the tests'
+/// build on two cores (BENCHMARKS.md, "Building the tests").
+const fn compiled(bits: u32) -> u32 {
+    if cfg!(test) {
+        FEATURES_ALL
+    } else {
+        bits
+    }
 }
 variants!(
     8 9 10 11 12 13 14 15 24 25 26 27 28 29 30 12319

@@ -64,8 +64,8 @@ macro_rules! variants {
 /// scene's image bit for bit as its own variant does). No unit test renders through the tables;
 /// the tests in `tests/` link the library as built and check each variant's image against the
 /// generic one. The tables are four times 68 monomorphs of the integrator, most of the library's
-/// machine code: compiled a second time for the unit tests' build, they doubled the tests'
-/// build on two cores (BENCHMARKS.md, "Building the tests").
+/// machine code: compiled a second time for the unit tests, they made the tests' build minutes
+/// longer (BENCHMARKS.md, "Building and testing").
 const fn compiled(bits: u32) -> u32 {
     if cfg!(test) {
         FEATURES_ALL

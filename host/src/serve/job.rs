@@ -3,12 +3,12 @@
 //! after each. The frames go out through a watch channel, which holds the newest only: a slow
 //! client skips frames instead of queueing them.
 use super::protocol::Progress;
-use super::State;
+use super::{within_folder, State};
 use crate::cli::Device;
 use crate::image::io;
 use crate::render::progressive::Progressive;
 use crate::settings::RenderSettings;
-use anyhow::Result;
+use anyhow::{anyhow, Result};
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::Instant;
@@ -86,7 +86,8 @@ fn render(
     runtime: &tokio::runtime::Handle,
 ) -> Result<()> {
     let s = &spec.settings;
-    let loaded = state.scenes[spec.scene].loaded(spec.device)?;
+    let entry = &state.scenes[spec.scene];
+    let loaded = entry.loaded(spec.device).map_err(|e| anyhow!(within_folder(&format!("{e:#}"), &entry.path)))?;
     let c = &loaded.compiled;
     let mut renderer: Box<dyn Progressive + '_> = match spec.device {
         Device::Cpu => Box::new(crate::render::cpu::progressive(c, s)?),

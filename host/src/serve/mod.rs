@@ -187,7 +187,7 @@ fn load_scene(index: usize, path: &Path) -> Result<SceneEntry> {
     let (lo, hi) = c.world_bounds();
     let s = cpu.settings.resolve(lo, hi).with_context(|| path.display().to_string())?;
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| path.display().to_string());
-    let mut warnings = within_folder(&cpu.warnings, path);
+    let mut warnings: Vec<String> = cpu.warnings.iter().map(|w| within_folder(w, path)).collect();
     if !crate::render::features::lit(c, &s) {
         warnings.push(format!("{name}: {}", crate::render::features::UNLIT));
     }
@@ -216,16 +216,15 @@ fn load_scene(index: usize, path: &Path) -> Result<SceneEntry> {
     Ok(SceneEntry { path: path.to_path_buf(), cpu, gpu: OnceLock::new(), info })
 }
 
-/// The loader's warnings as a client reads them: each path in the scene's folder written from
-/// that folder (`unlit.obj:3: ...`), so that the page names the file and line without telling
-/// every client where the server keeps its files.
-fn within_folder(warnings: &[String], scene: &Path) -> Vec<String> {
+/// A loader's message (a warning, or a render's error from the GPU's lazy load) as a client reads
+/// it: each path in the scene's folder written from that folder (`unlit.obj:3: ...`), so that the
+/// page names the file and line without telling every client where the server keeps its files.
+pub(crate) fn within_folder(message: &str, scene: &Path) -> String {
     let folder = scene.parent().map(|d| d.display().to_string()).unwrap_or_default();
     if folder.is_empty() {
-        return warnings.to_vec();
+        return message.to_string();
     }
-    let prefix = format!("{folder}{}", std::path::MAIN_SEPARATOR);
-    warnings.iter().map(|w| w.replace(&prefix, "")).collect()
+    message.replace(&format!("{folder}{}", std::path::MAIN_SEPARATOR), "")
 }
 
 /// Counts a connection for as long as it lives.

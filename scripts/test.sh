@@ -11,9 +11,10 @@ cargo fmt --all --check
 cargo clippy --release --workspace --exclude kernel --all-targets -- -D warnings
 # lavapipe's LLVM optimisation passes are most of a GPU test's time on a fresh machine: a test
 # renders a few small images, and lavapipe compiles each of its pipelines (entry point and
-# variant) once, 14-100 s of single-threaded work with the passes. Without them (gallivm's
-# `nopt`) the shaders compile 2-2.5 times faster and run about half as fast; the images are the same bit
-# for bit (the tests compare them with the CPU's). BENCHMARKS.md, "One compile per pipeline".
+# variant) once, seconds to tens of seconds of single-threaded work with the passes. Without
+# them (gallivm's `nopt`) the shaders compile 2-2.5 times faster and run about half as fast; the
+# images are the same bit for bit (the tests compare them with the CPU's). BENCHMARKS.md, "One
+# compile per pipeline".
 export GALLIVM_PERF="${GALLIVM_PERF:-nopt}"
 if cargo nextest --version >/dev/null 2>&1; then
   # One process per test and two tests at a time across all test binaries, so that a binary's one

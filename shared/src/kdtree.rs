@@ -26,7 +26,7 @@ use crate::surface::cut_out;
 use crate::triangle::RayShear;
 use crate::vecmath::axis;
 
-const STACK_SIZE: usize = KD_MAX_DEPTH as usize + 1;
+pub(crate) const STACK_SIZE: usize = KD_MAX_DEPTH as usize + 1;
 
 /// The closest hit of a ray, or `triangle == NO_HIT`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -398,7 +398,7 @@ pub(crate) fn descend(n: KdNode, node: u32, origin: Vec3, dir: Vec3, inv: Vec3, 
 /// The full traversal's stack. A GPU needs initialised arrays and has no memset; on the CPU,
 /// zeroing all `STACK_SIZE` entries for every ray measured 2% of a render's instructions, so
 /// there the slots start uninitialised and only pushed slots are read.
-struct Stack {
+pub(crate) struct Stack {
     #[cfg(target_arch = "spirv")]
     slots: [StackEntry; STACK_SIZE],
     #[cfg(not(target_arch = "spirv"))]
@@ -407,7 +407,7 @@ struct Stack {
 
 impl Stack {
     #[inline]
-    fn new() -> Self {
+    pub(crate) fn new() -> Self {
         #[cfg(target_arch = "spirv")]
         return Self { slots: [StackEntry { node: 0, t_min: 0.0, t_max: 0.0 }; STACK_SIZE] };
         #[cfg(not(target_arch = "spirv"))]
@@ -415,7 +415,7 @@ impl Stack {
     }
 
     #[inline]
-    fn set(&mut self, i: usize, e: StackEntry) {
+    pub(crate) fn set(&mut self, i: usize, e: StackEntry) {
         #[cfg(target_arch = "spirv")]
         {
             self.slots[i] = e;
@@ -428,10 +428,10 @@ impl Stack {
 
     /// Slot `i`, which the traversal has `set` (it reads only below its stack pointer).
     #[inline]
-    fn get(&self, i: usize) -> StackEntry {
+    pub(crate) fn get(&self, i: usize) -> StackEntry {
         #[cfg(target_arch = "spirv")]
         return self.slots[i];
-        // SAFETY: `traverse` reads a slot only after pushing it: every index it reads lies below
+        // SAFETY: the traversal (`short_stack::traverse`) reads a slot only after pushing it: every index it reads lies below
         // the stack pointer, and every slot below the pointer was written by `set`.
         #[cfg(not(target_arch = "spirv"))]
         return unsafe { self.slots[i].assume_init() };
@@ -460,7 +460,8 @@ pub fn occluded_hit(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32) -> H
 /// The closest (or any) hit with t in (0, t_max). On the CPU, a scene without alpha masks runs
 /// a traversal compiled without their test (`test_blocks`); a GPU variant has it or not by its
 /// specialisation constant, so it compiles one. `rec` hears of every node visited
-/// (`Recorder::node`).
+/// (`Recorder::node`). The loop is the short stack's (`short_stack::traverse`) with the full
+/// stack chosen, so that a shader that offers both stacks holds one copy of it.
 #[inline]
 pub(crate) fn traverse<R: Recorder>(
     scene: &SceneView,
@@ -470,66 +471,7 @@ pub(crate) fn traverse<R: Recorder>(
     any_hit: bool,
     rec: &mut R,
 ) -> Hit {
-    #[cfg(not(target_arch = "spirv"))]
-    if !scene.alpha_masks {
-        return traverse_with::<false, R>(scene, origin, dir, t_max, any_hit, rec);
-    }
-    traverse_with::<true, R>(scene, origin, dir, t_max, any_hit, rec)
-}
-
-fn traverse_with<const MASKS: bool, R: Recorder>(
-    scene: &SceneView,
-    origin: Vec3,
-    dir: Vec3,
-    t_max: f32,
-    any_hit: bool,
-    rec: &mut R,
-) -> Hit {
-    let mut best = Hit::miss(t_max);
-    let Some(ray) = ray_start(scene, origin, dir, t_max) else { return best };
-    let (dir, inv) = (ray.dir, ray.inv);
-    let (mut t0, mut t1) = (ray.t_enter, ray.t_exit);
-    let shear = RayShear::new(origin, dir);
-    let mut stack = Stack::new();
-    let mut sp = 0usize;
-    let mut node = 0u32;
-    let mut nodes = 0u32;
-    let mut tests = 0u32;
-    loop {
-        nodes += 1;
-        rec.node(node);
-        let n = scene.nodes[node as usize];
-        if !n.is_leaf() {
-            let step = descend(n, node, origin, dir, inv, t0, t1);
-            // The builder bounds depth by KD_MAX_DEPTH, so the stack cannot overflow on a
-            // validated tree; the guard only keeps a corrupt tree from writing out of bounds.
-            if step.push & (sp < STACK_SIZE) {
-                stack.set(sp, step.far);
-                sp += 1;
-            }
-            node = step.next;
-            t1 = step.t1;
-            continue;
-        }
-        let answered = test_leaf::<MASKS>(scene, &shear, n, &mut best, &mut tests, any_hit);
-        // Pop the nearest node that may still hold a closer hit.
-        let mut found = false;
-        while (sp > 0) & !found & !answered {
-            sp -= 1;
-            let e = stack.get(sp);
-            if may_hold_closer(e.t_min, best.t) {
-                node = e.node;
-                t0 = e.t_min;
-                t1 = e.t_max;
-                found = true;
-            }
-        }
-        if !found {
-            best.nodes = nodes;
-            best.tests = tests;
-            return best;
-        }
-    }
+    crate::short_stack::traverse::<1, R>(scene, origin, dir, t_max, any_hit, false, rec).hit
 }
 
 /// Tests every triangle: the reference the tree must reproduce exactly.

@@ -10,7 +10,7 @@
 //! `query_recorded` is the one query behind all of them, telling a `Recorder` which nodes the
 //! traversal visits; the others pass `NoRecord`.
 use crate::glam::Vec3;
-use crate::kdtree::{self, Hit};
+use crate::kdtree::Hit;
 use crate::layout::{RayQuery, RayResult, RAY_ALPHA_MASKS, RAY_ANY_HIT, RAY_SHORT_STACK, TRAVERSAL_SHORT_STACK};
 use crate::record::{NoRecord, Recorder};
 use crate::scene::SceneView;
@@ -50,12 +50,10 @@ pub fn query_recorded<R: Recorder>(
         // The wide BVH's nodes are not the k-d tree's: `rec` hears of none.
         return Traced { hit: crate::wide_bvh::traverse(scene, origin, dir, t_max, any_hit), restarts: 0 };
     }
-    if traversal == TRAVERSAL_SHORT_STACK {
-        let s = short_stack::traverse::<SHORT_STACK, R>(scene, origin, dir, t_max, any_hit, rec);
-        Traced { hit: s.hit, restarts: s.restarts }
-    } else {
-        Traced { hit: kdtree::traverse(scene, origin, dir, t_max, any_hit, rec), restarts: 0 }
-    }
+    // One call for both stacks: a shader inlines the traversal once per query (`short_stack`).
+    let short = traversal == TRAVERSAL_SHORT_STACK;
+    let s = short_stack::traverse::<SHORT_STACK, R>(scene, origin, dir, t_max, any_hit, short, rec);
+    Traced { hit: s.hit, restarts: s.restarts }
 }
 
 /// The closest hit with t in (0, t_max) by the chosen traversal.

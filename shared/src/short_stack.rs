@@ -15,8 +15,15 @@
 //! (counted as a restart). Such rays are rare outside adversarial tests.
 //!
 //! A small stack is what makes a k-d traversal fit in a GPU thread's registers.
+//!
+//! One loop serves both stacks (`traverse`'s `short`): the full-stack traversal of
+//! `kdtree::traverse` and the fall-back are this loop with the full stack chosen. A shader
+//! inlines the traversal, leaf test and alpha lookups included, at every query of the
+//! integrator; one loop for both stacks, where there were three (the short stack, its fall-back
+//! and the full stack), keeps the kernel much smaller, and a driver's compile time grows
+//! faster than the kernel does (README, "Shader size").
 use crate::glam::Vec3;
-use crate::kdtree::{descend, may_hold_closer, ray_start, test_leaf, Hit, StackEntry};
+use crate::kdtree::{descend, may_hold_closer, ray_start, test_leaf, Hit, Stack, StackEntry, STACK_SIZE};
 use crate::record::{NoRecord, Recorder};
 use crate::scene::SceneView;
 use crate::triangle::RayShear;
@@ -27,13 +34,13 @@ pub const SHORT_STACK: usize = 4;
 /// The closest hit with t in (0, t_max), traversing with an `S`-entry stack (`S ≥ 1`).
 #[inline]
 pub fn intersect_short<const S: usize>(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32) -> ShortHit {
-    traverse::<S, _>(scene, origin, dir, t_max, false, &mut NoRecord)
+    traverse::<S, _>(scene, origin, dir, t_max, false, true, &mut NoRecord)
 }
 
 /// Any hit with t in (0, t_max).
 #[inline]
 pub fn occluded_short<const S: usize>(scene: &SceneView, origin: Vec3, dir: Vec3, t_max: f32) -> ShortHit {
-    traverse::<S, _>(scene, origin, dir, t_max, true, &mut NoRecord)
+    traverse::<S, _>(scene, origin, dir, t_max, true, true, &mut NoRecord)
 }
 
 /// A hit and how many times the traversal restarted from the root.
@@ -43,14 +50,35 @@ pub struct ShortHit {
     pub restarts: u32,
 }
 
-/// The short-stack traversal; `rec` hears of every node visited (`Recorder::node`), the root
-/// again after each restart, and the full traversal's nodes where it falls back to it.
+/// The k-d traversal with the `S`-entry ring (`short`) or the full stack; `rec` hears of every
+/// node visited (`Recorder::node`), the root again after each restart, and the full traversal's
+/// nodes where the short stack falls back to it. On the CPU a scene without alpha masks runs the
+/// leaf test compiled without them (`test_blocks`).
+#[inline]
 pub(crate) fn traverse<const S: usize, R: Recorder>(
     scene: &SceneView,
     origin: Vec3,
     dir: Vec3,
     t_max: f32,
     any_hit: bool,
+    short: bool,
+    rec: &mut R,
+) -> ShortHit {
+    #[cfg(not(target_arch = "spirv"))]
+    if !scene.alpha_masks {
+        return traverse_with::<S, false, R>(scene, origin, dir, t_max, any_hit, short, rec);
+    }
+    traverse_with::<S, true, R>(scene, origin, dir, t_max, any_hit, short, rec)
+}
+
+#[inline]
+fn traverse_with<const S: usize, const MASKS: bool, R: Recorder>(
+    scene: &SceneView,
+    origin: Vec3,
+    dir: Vec3,
+    t_max: f32,
+    any_hit: bool,
+    short: bool,
     rec: &mut R,
 ) -> ShortHit {
     let mut best = Hit::miss(t_max);
@@ -61,20 +89,22 @@ pub(crate) fn traverse<const S: usize, R: Recorder>(
     };
     let (dir, inv, t_enter, t_exit) = (ray.dir, ray.inv, ray.t_enter, ray.t_exit);
     let shear = RayShear::new(origin, dir);
-    let mut stack = [StackEntry { node: 0, t_min: 0.0, t_max: 0.0 }; S];
-    // `top` is the next free slot of the ring; `count` entries below it are live.
+    let mut short = short;
+    // The ring: `top` is its next free slot, and `count` entries below it are live.
+    let mut ring = [StackEntry { node: 0, t_min: 0.0, t_max: 0.0 }; S];
     let mut top = 0usize;
     let mut count = 0usize;
     let mut dropped = false;
     // The nearest entry dropped since the last restart: the traversal restarts there.
     let mut drop_min = f32::MAX;
-    let mut fall_back = false;
-    let (mut t0, mut t1) = (t_enter, t_exit);
     let mut restart_at = t_enter;
+    // The full stack and its pointer.
+    let mut stack = Stack::new();
+    let mut sp = 0usize;
+    let (mut t0, mut t1) = (t_enter, t_exit);
     let mut node = 0u32;
     let (mut nodes, mut tests) = (0u32, 0u32);
-    let mut done = false;
-    while !done {
+    loop {
         nodes += 1;
         rec.node(node);
         let n = scene.nodes[node as usize];
@@ -82,31 +112,37 @@ pub(crate) fn traverse<const S: usize, R: Recorder>(
             let step = descend(n, node, origin, dir, inv, t0, t1);
             node = step.next;
             t1 = step.t1;
-            if step.push {
+            if step.push & short {
                 if count == S {
                     // The ring is full: the slot at `top` holds the oldest entry, dropped now.
-                    let old = stack[top].t_min;
+                    let old = ring[top].t_min;
                     drop_min = if old < drop_min { old } else { drop_min };
                 }
-                stack[top] = step.far;
+                ring[top] = step.far;
                 top = if top + 1 == S { 0 } else { top + 1 };
                 if count == S {
                     dropped = true;
                 } else {
                     count += 1;
                 }
+            } else if step.push & (sp < STACK_SIZE) {
+                // The builder bounds depth by KD_MAX_DEPTH, so the full stack cannot overflow
+                // on a validated tree; the guard only keeps a corrupt tree from writing out of
+                // bounds.
+                stack.set(sp, step.far);
+                sp += 1;
             }
             continue;
         }
-        done = test_leaf::<true>(scene, &shear, n, &mut best, &mut tests, any_hit);
+        let done = test_leaf::<MASKS>(scene, &shear, n, &mut best, &mut tests, any_hit);
         // Pop the nearest entry that may still hold a closer hit. Entries pushed for a ray lying
-        // in a split plane start where the traversal already is, so the stack is not sorted by
+        // in a split plane start where the traversal already is, so neither stack is sorted by
         // distance: every entry is checked, none is assumed culled by the one above it.
         let mut found = false;
-        while (count > 0) & !found & !done {
+        while short & (count > 0) & !found & !done {
             top = if top == 0 { S - 1 } else { top - 1 };
             count -= 1;
-            let e = stack[top];
+            let e = ring[top];
             if may_hold_closer(e.t_min, best.t) {
                 node = e.node;
                 t0 = e.t_min;
@@ -114,34 +150,46 @@ pub(crate) fn traverse<const S: usize, R: Recorder>(
                 found = true;
             }
         }
-        if !found & !done {
-            let more = dropped & may_hold_closer(drop_min, best.t);
-            if more & (drop_min > restart_at) {
-                // Restart from the root at the nearest dropped entry: everything before it
-                // has been visited.
-                restart_at = drop_min;
-                t0 = restart_at;
-                t1 = t_exit;
-                node = 0;
-                top = 0;
-                count = 0;
-                dropped = false;
-                drop_min = f32::MAX;
-                restarts += 1;
-            } else {
-                // No progress possible (a ray lying in split planes needs both halves over the
-                // same interval, more than the stack holds): finish with the full stack.
-                fall_back = more;
-                done = true;
+        while !short & (sp > 0) & !found & !done {
+            sp -= 1;
+            let e = stack.get(sp);
+            if may_hold_closer(e.t_min, best.t) {
+                node = e.node;
+                t0 = e.t_min;
+                t1 = e.t_max;
+                found = true;
             }
         }
-    }
-    if fall_back {
-        let full = crate::kdtree::traverse(scene, origin, dir, t_max, any_hit, rec);
-        return ShortHit {
-            hit: Hit { nodes: nodes + full.nodes, tests: tests + full.tests, ..full },
-            restarts: restarts + 1,
-        };
+        if found | done | !short {
+            if found {
+                continue;
+            }
+            break;
+        }
+        let more = dropped & may_hold_closer(drop_min, best.t);
+        if !more {
+            break;
+        }
+        if drop_min > restart_at {
+            // Restart from the root at the nearest dropped entry: everything before it has
+            // been visited.
+            restart_at = drop_min;
+            t0 = restart_at;
+            top = 0;
+            count = 0;
+            dropped = false;
+            drop_min = f32::MAX;
+        } else {
+            // No progress possible (a ray lying in split planes needs both halves over the same
+            // interval, more than the ring holds): start again with the full stack, counted as
+            // a restart; the work so far stays counted.
+            short = false;
+            best = Hit::miss(t_max);
+            t0 = t_enter;
+        }
+        t1 = t_exit;
+        node = 0;
+        restarts += 1;
     }
     best.nodes = nodes;
     best.tests = tests;

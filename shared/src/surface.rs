@@ -177,33 +177,38 @@ pub fn resolve(scene: &SceneView, v: Variant, m: &Material, tri: u32, b: (f32, f
     // A scene without textures (an empty buffer) skips the slots: one compare per hit on the
     // CPU, whose variants all have the texture bit.
     if looks_up_textures(scene, v, m) {
-        let t = m.textures;
         let uv = uv_at(scene, tri, b);
-        if t[TEXTURE_ALBEDO] != NO_TEXTURE {
-            let c = sample(scene.textures, t[TEXTURE_ALBEDO] - 1, uv);
-            r.albedo.x = c.x;
-            r.albedo.y = c.y;
-            r.albedo.z = c.z;
-        }
-        if t[TEXTURE_EMISSION] != NO_TEXTURE {
-            let c = sample(scene.textures, t[TEXTURE_EMISSION] - 1, uv);
-            r.emission.x = c.x;
-            r.emission.y = c.y;
-            r.emission.z = c.z;
-        }
-        if t[TEXTURE_ROUGHNESS] != NO_TEXTURE {
-            let rough = sample(scene.textures, t[TEXTURE_ROUGHNESS] - 1, uv).x;
-            r.params.x = rough * rough;
-        }
-        if t[TEXTURE_METALLIC] != NO_TEXTURE {
-            r.params.z = sample(scene.textures, t[TEXTURE_METALLIC] - 1, uv).x;
-        }
-        if t[TEXTURE_CLEARCOAT] != NO_TEXTURE {
-            r.eta.x = sample(scene.textures, t[TEXTURE_CLEARCOAT] - 1, uv).x;
+        // The slots in a loop, one `sample` for all five: a shader inlines it once here instead
+        // of five times (README, "Shader size").
+        let mut k = 0;
+        while k < RESOLVED.len() {
+            let map = m.textures[RESOLVED[k]];
+            if map != NO_TEXTURE {
+                let c = sample(scene.textures, map - 1, uv);
+                match RESOLVED[k] {
+                    TEXTURE_ALBEDO => {
+                        r.albedo.x = c.x;
+                        r.albedo.y = c.y;
+                        r.albedo.z = c.z;
+                    }
+                    TEXTURE_EMISSION => {
+                        r.emission.x = c.x;
+                        r.emission.y = c.y;
+                        r.emission.z = c.z;
+                    }
+                    TEXTURE_ROUGHNESS => r.params.x = c.x * c.x,
+                    TEXTURE_METALLIC => r.params.z = c.x,
+                    _ => r.eta.x = c.x,
+                }
+            }
+            k += 1;
         }
     }
     r
 }
+
+/// The slots `resolve` looks up, in its order; the last is `TEXTURE_CLEARCOAT`.
+const RESOLVED: [usize; 5] = [TEXTURE_ALBEDO, TEXTURE_EMISSION, TEXTURE_ROUGHNESS, TEXTURE_METALLIC, TEXTURE_CLEARCOAT];
 
 /// The emitted radiance of `m` on triangle `tri` at weights `b` (its emission texture there,
 /// or its constant): what light sampling picks up from a point it chose on a lamp.

@@ -29,22 +29,23 @@ pub const INFO_WORDS: u32 = 4;
 
 /// The IEEE binary16 number in the low 16 bits of `h`, widened to f32 exactly (every half is an
 /// f32). Infinities and NaNs keep their class; the host stores neither.
+///
+/// All three cases are computed and one is picked: selects, not branches. A lookup decodes up to
+/// sixteen halves and a shader holds several lookups, so three-way control flow here multiplied
+/// the blocks that a driver's compiler must work through (README, "Shader size").
 #[inline]
 pub fn f16_to_f32(h: u32) -> f32 {
     let sign = (h & 0x8000) << 16;
     let exp = (h >> 10) & 0x1f;
     let mant = h & 0x3ff;
-    if exp == 0 {
-        // Zero or subnormal: mant · 2^-24, exact (an integer below 2^10 times a power of two
-        // that stays a normal f32). The sign is applied by bits, so −0 stays −0.
-        let magnitude = mant as f32 * (1.0 / 16_777_216.0);
-        f32::from_bits(magnitude.to_bits() | sign)
-    } else if exp == 31 {
-        f32::from_bits(sign | 0x7f80_0000 | (mant << 13))
-    } else {
-        // Rebias the exponent from 15 to 127.
-        f32::from_bits(sign | ((exp + 112) << 23) | (mant << 13))
-    }
+    // Zero or subnormal: mant · 2^-24, exact (an integer below 2^10 times a power of two that
+    // stays a normal f32). The sign is applied by bits, so −0 stays −0.
+    let small = (mant as f32 * (1.0 / 16_777_216.0)).to_bits() | sign;
+    let special = sign | 0x7f80_0000 | (mant << 13);
+    // Rebias the exponent from 15 to 127.
+    let normal = sign | ((exp + 112) << 23) | (mant << 13);
+    let wide = if exp == 31 { special } else { normal };
+    f32::from_bits(if exp == 0 { small } else { wide })
 }
 
 /// Table entry `index` (0-based).
@@ -104,6 +105,10 @@ pub fn axis_texels(t: f32, size: u32, clamp: bool) -> (u32, u32, f32) {
 }
 
 /// Texture `index`'s (0-based) bilinearly filtered value at `uv`.
+///
+/// The four texels are fetched in a loop, not by four calls: a shader inlines `texel` once
+/// instead of four times at each of its lookups (README, "Shader size"). The blend is the same
+/// products and sums in the same order (module docs).
 #[inline]
 pub fn sample(words: &[u32], index: u32, uv: Vec2) -> Vec4 {
     let t = info(words, index);
@@ -112,8 +117,17 @@ pub fn sample(words: &[u32], index: u32, uv: Vec2) -> Vec4 {
     // Image rows run top to bottom, v bottom to top.
     let (y0, y1, fy) = axis_texels(1.0 - uv.y, t.height, clamp);
     let (wx0, wy0) = (1.0 - fx, 1.0 - fy);
-    let top = texel(words, &t, x0, y0) * wx0 + texel(words, &t, x1, y0) * fx;
-    let bottom = texel(words, &t, x0, y1) * wx0 + texel(words, &t, x1, y1) * fx;
+    // (x0, y0), (x1, y0), (x0, y1), (x1, y1).
+    let mut c = [Vec4::ZERO; 4];
+    let mut k = 0;
+    while k < 4 {
+        let x = if (k & 1) == 0 { x0 } else { x1 };
+        let y = if k < 2 { y0 } else { y1 };
+        c[k] = texel(words, &t, x, y);
+        k += 1;
+    }
+    let top = c[0] * wx0 + c[1] * fx;
+    let bottom = c[2] * wx0 + c[3] * fx;
     top * wy0 + bottom * fy
 }
 

@@ -43,10 +43,11 @@ use crate::integrator::SHADOW_EPSILON;
 use crate::layout::{RenderParams, AOV_RADIANCE, LIGHT_NOT_TRIANGLE};
 use crate::numerics::offset_ray_origin;
 use crate::raycast::{any, closest, query_recorded};
-use crate::record::{NoRecord, Recorder, RAY_SHADOW};
+use crate::record::NoRecord;
 use crate::rng::Sampler;
 use crate::sampling::{cosine_hemisphere, light_point, orthonormal_basis, pick_light, power_heuristic3, INV_PI};
 use crate::scene::SceneView;
+use crate::shadow::ShadowRay;
 use crate::triangle::{hit_point, stored_normal, TriangleHit};
 use crate::vecmath::{dot, length_squared, xyz};
 #[allow(unused_imports)]
@@ -407,54 +408,39 @@ impl PooledLink {
     }
 }
 
-/// Whether a shadow ray from `spawn` reaches `target` (recorded as the path's shadow ray).
+/// The shadow ray from `spawn` to `target`.
 #[inline(always)]
-fn shadow_open<R: Recorder>(scene: &SceneView, p: &RenderParams, spawn: Vec3, target: Vec3, rec: &mut R) -> bool {
-    let (shadow_dir, shadow_t) = (target - spawn, 1.0 - SHADOW_EPSILON);
-    rec.ray(RAY_SHADOW, spawn, shadow_dir, shadow_t);
-    let shadow = query_recorded(scene, p.traversal, spawn, shadow_dir, shadow_t, true, rec);
-    rec.traced(shadow.hit.triangle, shadow.hit.t, shadow.hit.nodes, shadow.hit.tests, shadow.restarts);
-    !shadow.hit.is_hit()
+fn shadow_to(spawn: Vec3, target: Vec3) -> ShadowRay {
+    ShadowRay::new(spawn, target - spawn, 1.0 - SHADOW_EPSILON)
 }
 
 /// The connection strategy at an eye vertex (Lambertian, flat normal `nf` toward the ray's
 /// origin): its path through the light subpath's vertex, MIS-weighted against the path
-/// tracer's two ways of making the same path.
+/// tracer's two ways of making the same path. Returns the shadow ray (none where the two do
+/// not face each other) and the radiance it adds if it gets through (`shadow`).
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
-pub fn connect<R: Recorder>(
-    scene: &SceneView,
-    p: &RenderParams,
-    lv: &LightVertex,
-    pos: Vec3,
-    spawn: Vec3,
-    nf: Vec3,
-    albedo: Vec3,
-    beta: Vec3,
-    radiance: &mut Vec3,
-    rec: &mut R,
-) {
+pub fn connect(lv: &LightVertex, pos: Vec3, spawn: Vec3, nf: Vec3, albedo: Vec3, beta: Vec3) -> (ShadowRay, Vec3) {
     let link = Link::new(pos, nf, lv.pos, lv.n, dot(lv.n, lv.to_light));
+    let mut out = (ShadowRay::NONE, Vec3::ZERO);
     if lv.valid & link.ok {
         let w2 = link.weight(lv.pa, lv.q1(), 1.0);
         let target = offset_ray_origin(lv.pos, lv.error, link.toward_eye(lv.n));
-        if shadow_open(scene, p, spawn, target, rec) {
-            *radiance += beta * albedo * lv.albedo * lv.power * (link.geo * w2);
-        }
+        out = (shadow_to(spawn, target), beta * albedo * lv.albedo * lv.power * (link.geo * w2));
     }
+    out
 }
 
 /// The pooled connection at an eye vertex (Lambertian, flat normal `nf` toward the ray's
 /// origin) at bounce `bounce` of `rng`'s sample: weighs the `pool_candidates(bounce)` records of the
 /// sample's block that it takes from its group's window (`pool_window`, `pool_slot`) by their
 /// unshadowed contributions (MIS-weighted as `connect`'s), picks one in proportion and adds its
-/// contribution times the mean weight over the picked one's, if a shadow ray reaches it.
+/// contribution times the mean weight over the picked one's, if a shadow ray reaches it: returns
+/// that ray (none where no candidate weighs anything) and that contribution (`shadow`).
 #[inline(always)]
 // Index loops over the weights: the kernel's code keeps to them rather than slice iterators.
 #[allow(clippy::too_many_arguments, clippy::needless_range_loop)]
-pub fn connect_pooled<R: Recorder>(
+pub fn connect_pooled(
     scene: &SceneView,
-    p: &RenderParams,
     rng: &Sampler,
     bounce: u32,
     pos: Vec3,
@@ -462,9 +448,7 @@ pub fn connect_pooled<R: Recorder>(
     nf: Vec3,
     albedo: Vec3,
     beta: Vec3,
-    radiance: &mut Vec3,
-    rec: &mut R,
-) {
+) -> (ShadowRay, Vec3) {
     let window = pool_window(rng.group_bits(POOL_WINDOW_TAG + bounce, POOL_STRIDE));
     let (lane, u) = (rng.sample() % POOL_STRIDE, rng.independent_4d(POOL_PICK_TAG + bounce)[0]);
     let (records, at) = (scene.light_pool.records, scene.light_pool.offset(rng.sample()));
@@ -485,7 +469,7 @@ pub fn connect_pooled<R: Recorder>(
         }
     }
     if !((sum > 0.0) & (sum <= f32::MAX)) {
-        return;
+        return (ShadowRay::NONE, Vec3::ZERO);
     }
     let mut pick = u * sum;
     let mut y = 0;
@@ -504,9 +488,7 @@ pub fn connect_pooled<R: Recorder>(
     let (link, bw, (point, ny)) = pooled_candidate(records, slot, pos, nf, beta_albedo);
     let error = Vec3::splat(pool_field(records, slot, 12));
     let target = offset_ray_origin(point, error, if link.behind { ny } else { -ny });
-    if shadow_open(scene, p, spawn, target, rec) {
-        *radiance += bw * link.term * (sum / (candidates as f32 * w[y]));
-    }
+    (shadow_to(spawn, target), bw * link.term * (sum / (candidates as f32 * w[y])))
 }
 
 /// The pool record at `records[slot]` (its first field; `pool_index`) as a candidate for the

@@ -9,6 +9,9 @@
 //! done, and in a specialised build (a CPU monomorph, a GPU pipeline with specialisation
 //! constants) not compiled either.
 //!
+//! A vertex's shadow rays, next-event estimation's and the connection's, are prepared first and
+//! traced by one query (`shadow`), so that a shader holds one copy of the traversal for them.
+//!
 //! `trace_sample_recorded` runs a sample with a `record::Recorder` that hears of each event (rays,
 //! hits, emission, light and BSDF samples, roulette); the renderers (`render_samples`) pass
 //! `NoRecord`, whose hooks compile to nothing.
@@ -32,11 +35,12 @@ use crate::punctual;
 use crate::raycast::query_recorded;
 use crate::record::{
     BsdfEvent, LightEvent, NoRecord, Recorder, SurfaceEvent, END_ABSORBED, END_AOV, END_BOUNCE_LIMIT, END_ESCAPED,
-    END_ROULETTE, LIGHT_BLOCKED, LIGHT_DELTA, LIGHT_INVALID, LIGHT_UNBLOCKED, RAY_BOUNCE, RAY_CAMERA, RAY_SHADOW,
+    END_ROULETTE, LIGHT_BLOCKED, LIGHT_DELTA, LIGHT_INVALID, RAY_BOUNCE, RAY_CAMERA,
 };
 use crate::rng::Sampler;
 use crate::sampling::{light_point, pick_light, power_heuristic, power_heuristic3};
 use crate::scene::SceneView;
+use crate::shadow::{LightSample, ShadowRay};
 use crate::surface::{consistent, emission_at, hit_weights, material_at, shading_normal};
 #[cfg(not(target_arch = "spirv"))]
 use crate::surface::{looks_up_textures, resolve};
@@ -211,6 +215,18 @@ fn facing(ng: Vec3, n: Vec3, dir: Vec3) -> (Vec3, bool) {
     (if front { n } else { -n }, front)
 }
 
+/// The light event of a vertex whose material is a delta, which takes no light sample.
+const DELTA_LIGHT_EVENT: LightEvent = LightEvent {
+    status: LIGHT_DELTA,
+    light: 0,
+    triangle: 0,
+    point: Vec3::ZERO,
+    light_pdf: 0.0,
+    bsdf_pdf: 0.0,
+    mis_weight: 0.0,
+    contribution: Vec3::ZERO,
+};
+
 /// One path vertex: emission (MIS-weighted against light sampling), next-event estimation, then
 /// the BSDF sample that continues the path. Returns whether the path goes on.
 #[inline(always)]
@@ -316,6 +332,9 @@ fn shade_vertex<R: Recorder>(
     // connection strategy's MIS weight.
     let inv_pi_a = if path.bidir & (path.bounce > 0) { inv_pi_area(path.prev_cos, n, dir, hit.t) } else { 0.0 };
 
+    // Next-event estimation's light sample and the connection each cast a shadow ray: both are
+    // prepared, then traced by one query in a loop of two (`shadow`), light sample first.
+    let mut nee = LightSample { event: DELTA_LIGHT_EVENT, ray: ShadowRay::NONE, added: Vec3::ZERO };
     // A smooth mirror reflects no sampled light: its reflection of an emitter counts in full
     // when the BSDF ray hits it (`DELTA_PDF` takes the whole MIS weight).
     if lights & !is_delta(v, mat) {
@@ -328,12 +347,10 @@ fn shade_vertex<R: Recorder>(
         let light = scene.lights[index as usize];
         let other = (v.has(FEATURE_ENVIRONMENT_MAP) | v.has(FEATURE_PUNCTUAL)) & (light.triangle >= LIGHT_NOT_TRIANGLE);
         if other {
-            sample_other_light(
+            nee = other_light_sample(
                 scene,
-                p,
                 v,
                 path.beta,
-                &mut path.radiance,
                 mat,
                 light.triangle,
                 light.pmf,
@@ -347,7 +364,6 @@ fn shade_vertex<R: Recorder>(
                 front,
                 u1,
                 u_light,
-                rec,
             );
         } else {
             let lp = light_point(&scene.triangles[light.triangle as usize], u1, u_light);
@@ -358,7 +374,7 @@ fn shade_vertex<R: Recorder>(
             let wi = to_light * (1.0 / dist2.sqrt());
             let cos_l = -dot(nl, wi);
             let (f, pdf_bsdf) = eval(v, mat, scene.textures, ns, wo, wi, front);
-            let mut event = LightEvent {
+            nee.event = LightEvent {
                 status: LIGHT_INVALID,
                 light: index,
                 triangle: light.triangle,
@@ -375,50 +391,48 @@ fn shade_vertex<R: Recorder>(
                 // from the far side.
                 let cos_i = dot(ns, wi);
                 let from = if dot(nf, wi) < 0.0 { offset_ray_origin(pos, surface.error, -nf) } else { spawn };
-                let (shadow_dir, shadow_t) = (target - from, 1.0 - SHADOW_EPSILON);
-                rec.ray(RAY_SHADOW, from, shadow_dir, shadow_t);
-                let shadow = query_recorded(scene, p.traversal, from, shadow_dir, shadow_t, true, rec);
-                rec.traced(shadow.hit.triangle, shadow.hit.t, shadow.hit.nodes, shadow.hit.tests, shadow.restarts);
-                event.status = LIGHT_BLOCKED;
-                event.light_pdf = light_pdf;
+                nee.ray = ShadowRay::new(from, target - from, 1.0 - SHADOW_EPSILON);
+                nee.event.status = LIGHT_BLOCKED;
+                nee.event.light_pdf = light_pdf;
                 let weight = if path.bidir {
                     let q2 = light.pmf / light.area * dot(nf, wi).abs() * inv_pi_a * connection_weight(p);
                     power_heuristic3(light_pdf, pdf_bsdf, q2)
                 } else {
                     power_heuristic(light_pdf, pdf_bsdf)
                 };
-                event.mis_weight = weight;
-                if !shadow.hit.is_hit() {
-                    let lmat = &scene.materials[scene.info[light.triangle as usize].material as usize];
-                    let le = emission_at(scene, v, lmat, light.triangle, lp.b);
-                    let added = path.beta * f * le * (cos_i.abs() * weight / light_pdf);
-                    path.radiance += added;
-                    event.status = LIGHT_UNBLOCKED;
-                    event.contribution = added;
-                }
+                nee.event.mis_weight = weight;
+                let lmat = &scene.materials[scene.info[light.triangle as usize].material as usize];
+                let le = emission_at(scene, v, lmat, light.triangle, lp.b);
+                nee.added = path.beta * f * le * (cos_i.abs() * weight / light_pdf);
             }
-            rec.light(event);
         }
-    } else if lights {
-        rec.light(LightEvent {
-            status: LIGHT_DELTA,
-            light: 0,
-            triangle: 0,
-            point: Vec3::ZERO,
-            light_pdf: 0.0,
-            bsdf_pdf: 0.0,
-            mis_weight: 0.0,
-            contribution: Vec3::ZERO,
-        });
     }
 
-    if path.bidir & (path.bounce < v.max_bounces) {
-        let albedo = Vec3::new(mat.albedo.x, mat.albedo.y, mat.albedo.z);
-        if p.light_pool != 0 {
-            connect_pooled(scene, p, rng, path.bounce, pos, spawn, nf, albedo, path.beta, &mut path.radiance, rec);
-        } else {
-            connect(scene, p, lv, pos, spawn, nf, albedo, path.beta, &mut path.radiance, rec);
+    let connects = path.bidir & (path.bounce < v.max_bounces);
+    let mut k = 0;
+    while k < 2 {
+        let mut ray = nee.ray;
+        let mut added = Vec3::ZERO;
+        if k == 1 {
+            ray = ShadowRay::NONE;
+            if connects {
+                let albedo = Vec3::new(mat.albedo.x, mat.albedo.y, mat.albedo.z);
+                (ray, added) = if p.light_pool != 0 {
+                    connect_pooled(scene, rng, path.bounce, pos, spawn, nf, albedo, path.beta)
+                } else {
+                    connect(lv, pos, spawn, nf, albedo, path.beta)
+                };
+            }
         }
+        let open = ray.open(scene, p, rec);
+        if k == 0 {
+            if lights {
+                nee.finish(open, &mut path.radiance, rec);
+            }
+        } else if open {
+            path.radiance += added;
+        }
+        k += 1;
     }
 
     // The lobe pick's uniform, drawn only for a material that has a choice.
@@ -469,7 +483,9 @@ fn shade_vertex<R: Recorder>(
 /// `LIGHT_NOT_TRIANGLE | offset`, with `LIGHT_ENVIRONMENT_BIT` for the environment map): the map
 /// is sampled by its distribution and MIS-weighted against the BSDF; a punctual light is a delta
 /// and takes its whole weight. The contribution, for a path of throughput `beta`, is added to
-/// `radiance` (also by the lane integrator, lane by lane).
+/// `radiance`: the lane integrator's, lane by lane (`shade_vertex` prepares the sample with
+/// `other_light_sample` and traces its ray with the connection's).
+#[cfg(not(target_arch = "spirv"))]
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn sample_other_light<R: Recorder>(
@@ -493,6 +509,32 @@ pub(crate) fn sample_other_light<R: Recorder>(
     u2: f32,
     rec: &mut R,
 ) {
+    let s = other_light_sample(scene, v, beta, mat, kind, pmf, index, pos, spawn, error, nf, ns, wo, front, u1, u2);
+    let open = s.ray.open(scene, p, rec);
+    s.finish(open, radiance, rec);
+}
+
+/// `sample_other_light`'s light sample with its shadow ray, not yet traced.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn other_light_sample(
+    scene: &SceneView,
+    v: Variant,
+    beta: Vec3,
+    mat: &crate::layout::Material,
+    kind: u32,
+    pmf: f32,
+    index: u32,
+    pos: Vec3,
+    spawn: Vec3,
+    error: Vec3,
+    nf: Vec3,
+    ns: Vec3,
+    wo: Vec3,
+    front: bool,
+    u1: f32,
+    u2: f32,
+) -> LightSample {
     let o = kind & LIGHT_OFFSET_MASK;
     let env = v.has(FEATURE_ENVIRONMENT_MAP) & (kind & LIGHT_ENVIRONMENT_BIT != 0);
     let mut wi = Vec3::Z;
@@ -516,35 +558,32 @@ pub(crate) fn sample_other_light<R: Recorder>(
         delta = true;
     }
     let (f, pdf_bsdf) = eval(v, mat, scene.textures, ns, wo, wi, front);
-    let mut event = LightEvent {
-        status: LIGHT_INVALID,
-        light: index,
-        triangle: kind,
-        point: target,
-        light_pdf,
-        bsdf_pdf: pdf_bsdf,
-        mis_weight: 0.0,
-        contribution: Vec3::ZERO,
+    let mut s = LightSample {
+        event: LightEvent {
+            status: LIGHT_INVALID,
+            light: index,
+            triangle: kind,
+            point: target,
+            light_pdf,
+            bsdf_pdf: pdf_bsdf,
+            mis_weight: 0.0,
+            contribution: Vec3::ZERO,
+        },
+        ray: ShadowRay::NONE,
+        added: Vec3::ZERO,
     };
     let visible = (incident.x > 0.0) | (incident.y > 0.0) | (incident.z > 0.0);
     if visible & (light_pdf > 0.0) & (pdf_bsdf > 0.0) & consistent(v, nf, ns, wi) {
         let cos_i = dot(ns, wi);
         let from = if dot(nf, wi) < 0.0 { offset_ray_origin(pos, error, -nf) } else { spawn };
         let (shadow_dir, shadow_t) = if infinite { (wi, f32::MAX) } else { (target - from, 1.0 - SHADOW_EPSILON) };
-        rec.ray(RAY_SHADOW, from, shadow_dir, shadow_t);
-        let shadow = query_recorded(scene, p.traversal, from, shadow_dir, shadow_t, true, rec);
-        rec.traced(shadow.hit.triangle, shadow.hit.t, shadow.hit.nodes, shadow.hit.tests, shadow.restarts);
+        s.ray = ShadowRay::new(from, shadow_dir, shadow_t);
         let weight = if delta { 1.0 } else { power_heuristic(light_pdf, pdf_bsdf) };
-        event.status = LIGHT_BLOCKED;
-        event.mis_weight = weight;
-        if !shadow.hit.is_hit() {
-            let added = beta * f * incident * (cos_i.abs() * weight / light_pdf);
-            *radiance += added;
-            event.status = LIGHT_UNBLOCKED;
-            event.contribution = added;
-        }
+        s.event.status = LIGHT_BLOCKED;
+        s.event.mis_weight = weight;
+        s.added = beta * f * incident * (cos_i.abs() * weight / light_pdf);
     }
-    rec.light(event);
+    s
 }
 
 /// Adds this pass's samples (`p.sample_start`, `p.sample_count`) of pixel (x, y) to its running

@@ -36,6 +36,7 @@ pub mod record;
 pub mod rng;
 pub mod sampling;
 pub mod scene;
+pub mod shadow;
 pub mod short_stack;
 pub mod sobol;
 pub mod surface;

@@ -482,42 +482,11 @@ fn shade_vertex<R: Recorder>(
 /// Next-event estimation toward a light-table entry that is not a triangle (`kind`:
 /// `LIGHT_NOT_TRIANGLE | offset`, with `LIGHT_ENVIRONMENT_BIT` for the environment map): the map
 /// is sampled by its distribution and MIS-weighted against the BSDF; a punctual light is a delta
-/// and takes its whole weight. The contribution, for a path of throughput `beta`, is added to
-/// `radiance`: the lane integrator's, lane by lane (`shade_vertex` prepares the sample with
-/// `other_light_sample` and traces its ray with the connection's).
-#[cfg(not(target_arch = "spirv"))]
+/// and takes its whole weight. Returns the sample with its shadow ray, not yet traced, and its
+/// contribution for a path of throughput `beta` (also the lane integrator's, lane by lane).
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn sample_other_light<R: Recorder>(
-    scene: &SceneView,
-    p: &RenderParams,
-    v: Variant,
-    beta: Vec3,
-    radiance: &mut Vec3,
-    mat: &crate::layout::Material,
-    kind: u32,
-    pmf: f32,
-    index: u32,
-    pos: Vec3,
-    spawn: Vec3,
-    error: Vec3,
-    nf: Vec3,
-    ns: Vec3,
-    wo: Vec3,
-    front: bool,
-    u1: f32,
-    u2: f32,
-    rec: &mut R,
-) {
-    let s = other_light_sample(scene, v, beta, mat, kind, pmf, index, pos, spawn, error, nf, ns, wo, front, u1, u2);
-    let open = s.ray.open(scene, p, rec);
-    s.finish(open, radiance, rec);
-}
-
-/// `sample_other_light`'s light sample with its shadow ray, not yet traced.
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn other_light_sample(
+pub(crate) fn other_light_sample(
     scene: &SceneView,
     v: Variant,
     beta: Vec3,

@@ -27,7 +27,7 @@ use crate::features::{
 };
 use crate::glam::{Vec3, Vec4};
 use crate::integrator::{
-    map_seen, medium_transmittance, sample_other_light, PixelSpan, RR_MAX_SURVIVAL, SHADOW_EPSILON,
+    map_seen, medium_transmittance, other_light_sample, PixelSpan, RR_MAX_SURVIVAL, SHADOW_EPSILON,
 };
 use crate::kdtree::Hit;
 use crate::layout::{
@@ -51,7 +51,7 @@ use core::simd::Select;
 /// least one material kind. Texture lookups, alpha tests, shading normals, the BSDFs other than
 /// Lambertian, the environment map and punctual lights run lane by lane, through the scalar
 /// integrator's own functions (`surface`, `material`, `environment`,
-/// `integrator::sample_other_light`); the Lambertian BSDF and emitting triangles' light samples
+/// `integrator::other_light_sample`); the Lambertian BSDF and emitting triangles' light samples
 /// run on all sixteen lanes at once.
 #[inline(always)]
 pub const fn covers(features: u32) -> bool {
@@ -633,7 +633,7 @@ impl<'a> Kinds<'a> {
 /// lane; on an emitting triangle a point on it, the shadow rays one by one (or by brute force),
 /// the unblocked lanes' MIS-weighted contributions added to `radiance`, each lane's BSDF value
 /// from `kinds` where its kind is not Lambertian; the environment map and punctual lights lane
-/// by lane (`integrator::sample_other_light`, given `kinds`).
+/// by lane (`integrator::other_light_sample`, given `kinds`).
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn next_event(
@@ -666,12 +666,10 @@ fn next_event(
                 // The environment map or a punctual light: the scalar integrator's sample.
                 on_triangle.set(i, false);
                 let mut sum = radiance.lane(i);
-                sample_other_light(
+                let s = other_light_sample(
                     scene,
-                    p,
                     v,
                     beta.lane(i),
-                    &mut sum,
                     k.mats[i],
                     picks.triangle[i],
                     pmf[i],
@@ -685,8 +683,9 @@ fn next_event(
                     k.front.test(i),
                     picks.u[i],
                     u_light[i],
-                    &mut NoRecord,
                 );
+                let open = s.ray.open(scene, p, &mut NoRecord);
+                s.finish(open, &mut sum, &mut NoRecord);
                 (radiance.x[i], radiance.y[i], radiance.z[i]) = (sum.x, sum.y, sum.z);
             }
         }

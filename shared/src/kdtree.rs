@@ -431,8 +431,9 @@ impl Stack {
     pub(crate) fn get(&self, i: usize) -> StackEntry {
         #[cfg(target_arch = "spirv")]
         return self.slots[i];
-        // SAFETY: the traversal (`short_stack::traverse`) reads a slot only after pushing it: every index it reads lies below
-        // the stack pointer, and every slot below the pointer was written by `set`.
+        // SAFETY: the traversal (`short_stack::traverse`) reads a slot only after pushing it:
+        // every index it reads lies below the stack pointer, and every slot below the pointer
+        // was written by `set`.
         #[cfg(not(target_arch = "spirv"))]
         return unsafe { self.slots[i].assume_init() };
     }

@@ -160,10 +160,10 @@ fn traverse_with<const S: usize, const MASKS: bool, R: Recorder>(
                 found = true;
             }
         }
-        if found | done | !short {
-            if found {
-                continue;
-            }
+        if found {
+            continue;
+        }
+        if done | !short {
             break;
         }
         let more = dropped & may_hold_closer(drop_min, best.t);

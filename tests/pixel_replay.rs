@@ -7,7 +7,8 @@
 //!   generic `shared::integrator::render_samples` add for the sample range [S, S + 1).
 //! - Consistent: at most bounces + 2 vertices, the first projects into its pixel, throughputs are
 //!   the products of the BSDF weights (over roulette's survival), the radiance is the sum of what
-//!   the record says was added, traversals start at the root and test the triangle they hit.
+//!   the record says was added (connections to light subpaths included), traversals start at the
+//!   root and test the triangle they hit.
 //! - The CLI prints one JSON line and refuses a pixel outside the image with exit code 2.
 #[path = "common/paths.rs"]
 mod paths;
@@ -16,7 +17,7 @@ use kdtrace::debug::{self, PathRecord};
 use kdtrace::image::io::read_exr;
 use kdtrace::kdbuild::BuildSettings;
 use kdtrace::render::{cpu, features, Compiled};
-use kdtrace::settings::{RenderSettings, SceneSettings, Traversal};
+use kdtrace::settings::{Connect, RenderSettings, SceneSettings, Traversal};
 use kdtrace::{load, Loaded};
 use paths::repo;
 use shared::features::{Variant, FEATURES_ALL};
@@ -213,6 +214,69 @@ fn later_samples_replay_what_the_renderer_adds() {
     assert!(checked >= 200, "{checked}");
 }
 
+/// The uneven-noise room, whose paths connect to light subpaths, drawn from the pool (the
+/// default) or each sample's own (`--light-pool off`, whose ray the integrator traces through the
+/// path's own query before the camera ray): the records name each connection and what it added,
+/// the recorder hears only the path's rays (each traversal starts at the root and tests what it
+/// hit), and the replays equal what the renderer's variant and the generic code add.
+#[test]
+fn connections_are_recorded_and_light_subpaths_stay_out_of_the_record() {
+    let loaded = load(&repo("scenes/uneven-noise.toml"), BuildSettings::default()).unwrap();
+    let c = &loaded.compiled;
+    let (lo, hi) = c.world_bounds();
+    let s = loaded.settings.resolve(lo, hi).unwrap();
+    for light_pool in [false, true] {
+        let s = RenderSettings {
+            width: SIZE,
+            height: SIZE,
+            spp: 1,
+            max_bounces: BOUNCES,
+            connect: Connect::On,
+            light_pool,
+            ..s
+        };
+        assert!(features::analyse(c, &s).connect, "the room connects");
+        let s_cpu = RenderSettings { traversal: s.traversal.resolve(true), ..s };
+        let variant = cpu::variant(features::variant_bits(c, &s_cpu));
+        let (mut checked, mut lit) = (0, 0);
+        let mut statuses = std::collections::BTreeSet::new();
+        for sample in [0, 7] {
+            let params = c.params(&s_cpu, sample, 1).unwrap();
+            assert_eq!((params.connect, params.light_pool), (1, light_pool as u32));
+            let view = c.view(&params);
+            let (pool, first) = kdtrace::render::light_pool::pool_of(&view, &params, sample, sample + 1);
+            let view = kdtrace::render::light_pool::view(&view, &pool, first);
+            for y in (0..SIZE).step_by(2) {
+                for x in (0..SIZE).step_by(2) {
+                    let at = format!("pool {light_pool}, ({x}, {y}) sample {sample}");
+                    let r = debug::replay(c, &s, x, y, sample).unwrap();
+                    check_record(c, &r);
+                    let (mut sum, mut sum_sq, mut primary) = (Vec4::ZERO, Vec4::ZERO, NO_HIT);
+                    let (sums, sums_sq) = (core::slice::from_mut(&mut sum), core::slice::from_mut(&mut sum_sq));
+                    let span = [PixelSpan { x, start: sample, count: 1 }];
+                    variant(&view, &params, y, &span, 1, 1, sums, sums_sq, core::slice::from_mut(&mut primary));
+                    assert_eq!(bits(r.radiance), bits(sum.truncate().to_array()), "{at}");
+                    let generic = Variant::new(FEATURES_ALL, &params);
+                    let (mut sum, mut sum_sq) = (Vec4::ZERO, Vec4::ZERO);
+                    render_samples(&view, &params, generic, x, y, sample, 1, &mut sum, &mut sum_sq, &mut primary);
+                    assert_eq!(bits(r.radiance), bits(sum.truncate().to_array()), "{at}, generic");
+                    checked += 1;
+                    lit += (r.radiance.iter().sum::<f32>() > 0.0) as u32;
+                    for v in &r.vertices {
+                        if let Some(k) = &v.connection {
+                            statuses.insert(k.status);
+                        }
+                    }
+                }
+            }
+        }
+        assert!(checked == 2 * 16 * 16 && lit > checked / 4, "pool {light_pool}: {lit} of {checked} lit");
+        // Light reaches the room around the partition through the connections: each kind is seen.
+        let statuses: Vec<_> = statuses.into_iter().collect();
+        assert_eq!(statuses, ["blocked", "invalid", "unblocked"], "pool {light_pool}");
+    }
+}
+
 /// Checks one record's inner consistency; returns nothing, panics with the pixel on failure.
 fn check_record(c: &Compiled, r: &PathRecord) {
     let at = format!("pixel ({}, {}) sample {}", r.x, r.y, r.sample);
@@ -268,6 +332,24 @@ fn check_record(c: &Compiled, r: &PathRecord) {
             }
             if l.status == "delta" {
                 assert!(matches!(v.material_kind, "conductor" | "dielectric"), "{at}: {}", v.material_kind);
+            }
+        }
+        if let Some(k) = &v.connection {
+            sum += Vec3::from(k.contribution);
+            let ray = k.shadow_ray.as_ref();
+            match k.status {
+                "unblocked" | "blocked" => {
+                    let ray = ray.unwrap_or_else(|| panic!("{at}: a connection without its shadow ray"));
+                    assert_eq!(k.status == "blocked", ray.occluder.is_some(), "{at}");
+                    assert_eq!(ray.traversal.nodes_visited.first(), Some(&0), "{at}: the connection's traversal");
+                    if let Some(o) = ray.occluder {
+                        assert!(ray.traversal.triangles_tested.contains(&o), "{at}: occluder never tested");
+                        assert_eq!(Vec3::from(k.contribution), Vec3::ZERO, "{at}");
+                    }
+                    assert!(k.point.is_some(), "{at}");
+                }
+                "invalid" => assert!(ray.is_none() && Vec3::from(k.contribution) == Vec3::ZERO, "{at}"),
+                other => panic!("{at}: connection status {other}"),
             }
         }
         let before = beta;

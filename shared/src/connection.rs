@@ -40,6 +40,7 @@
 use crate::features::{Variant, FEATURES_ALL, FEATURE_CONNECT, FEATURE_MANY_EMITTERS};
 use crate::glam::Vec3;
 use crate::integrator::SHADOW_EPSILON;
+use crate::kdtree::Hit;
 use crate::layout::{RenderParams, AOV_RADIANCE, LIGHT_NOT_TRIANGLE};
 use crate::numerics::offset_ray_origin;
 use crate::raycast::{any, closest, query_recorded};
@@ -283,12 +284,71 @@ impl LightVertex {
 /// Traces the light subpath of the sampler's sample (its uniforms keyed by `CONNECT_TAG`).
 #[inline(always)]
 pub fn light_vertex(scene: &SceneView, p: &RenderParams, v: Variant, rng: &Sampler) -> LightVertex {
+    let ray = light_ray(scene, v, rng);
+    if !ray.ok {
+        return LightVertex::NONE;
+    }
+    ray.vertex(scene, &query_recorded(scene, p.traversal, ray.origin, ray.dir, f32::MAX, false, &mut NoRecord).hit)
+}
+
+/// The first ray of a light subpath, prepared (`light_ray`), and what its vertex takes from the
+/// light (`LightRay::vertex`): the integrator traces it with the path's own query, so that a
+/// shader holds one copy of the traversal for both.
+#[derive(Clone, Copy)]
+pub struct LightRay {
+    /// There is a ray to trace: a triangle light emitting, the direction above it.
+    pub ok: bool,
+    pub origin: Vec3,
+    pub dir: Vec3,
+    /// The direction's cosine to the light's normal.
+    cos_l: f32,
+    /// The light point's area density: the light's pick probability over its area.
+    pa: f32,
+    /// The light's emitted radiance.
+    le: Vec3,
+}
+
+impl LightRay {
+    pub const NONE: LightRay =
+        LightRay { ok: false, origin: Vec3::ZERO, dir: Vec3::Z, cos_l: 0.0, pa: 0.0, le: Vec3::ZERO };
+
+    /// The light vertex where the ray hit (`hit`, `NO_HIT` for none).
+    #[inline(always)]
+    pub fn vertex(&self, scene: &SceneView, hit: &Hit) -> LightVertex {
+        if !self.ok | !hit.is_hit() {
+            return LightVertex::NONE;
+        }
+        let tri = &scene.triangles[hit.triangle as usize];
+        let m = &scene.materials[scene.info[hit.triangle as usize].material as usize];
+        let albedo = Vec3::new(m.albedo.x, m.albedo.y, m.albedo.z);
+        let surface = hit_point(tri, &TriangleHit { t: hit.t, u: hit.u, v: hit.v, w: hit.w });
+        let len2 = length_squared(self.dir);
+        LightVertex {
+            valid: (albedo.x > 0.0) | (albedo.y > 0.0) | (albedo.z > 0.0),
+            pos: surface.p,
+            error: surface.error,
+            n: stored_normal(tri),
+            albedo,
+            to_light: -(self.dir * (1.0 / len2.sqrt())),
+            dist2: hit.t * hit.t * len2,
+            cos_l: self.cos_l,
+            pa: self.pa,
+            power: self.le * (INV_PI / self.pa),
+        }
+    }
+}
+
+/// The first ray of the sampler's sample's light subpath (its uniforms keyed by `CONNECT_TAG`):
+/// a point on a triangle light picked as next-event estimation picks it, a cosine-distributed
+/// direction from it.
+#[inline(always)]
+pub fn light_ray(scene: &SceneView, v: Variant, rng: &Sampler) -> LightRay {
     let [ua, ub, uc, ud] = rng.independent_4d(CONNECT_TAG);
     let many = v.has(FEATURE_MANY_EMITTERS);
     let (index, u1) = pick_light(scene.lights, scene.light_count, many, ua);
     let light = scene.lights[index as usize];
     if light.triangle >= LIGHT_NOT_TRIANGLE {
-        return LightVertex::NONE;
+        return LightRay::NONE;
     }
     let lmat = &scene.materials[scene.info[light.triangle as usize].material as usize];
     let le = Vec3::new(lmat.emission.x, lmat.emission.y, lmat.emission.z);
@@ -297,31 +357,13 @@ pub fn light_vertex(scene: &SceneView, p: &RenderParams, v: Variant, rng: &Sampl
     let local = cosine_hemisphere(uc, ud);
     let (tb, bb) = orthonormal_basis(nl);
     let dir = tb * local.x + bb * local.y + nl * local.z;
-    if !(local.z > 0.0) | !((le.x > 0.0) | (le.y > 0.0) | (le.z > 0.0)) {
-        return LightVertex::NONE;
-    }
-    let origin = offset_ray_origin(on_light.p, on_light.error, nl);
-    let hit = query_recorded(scene, p.traversal, origin, dir, f32::MAX, false, &mut NoRecord).hit;
-    if !hit.is_hit() {
-        return LightVertex::NONE;
-    }
-    let tri = &scene.triangles[hit.triangle as usize];
-    let m = &scene.materials[scene.info[hit.triangle as usize].material as usize];
-    let albedo = Vec3::new(m.albedo.x, m.albedo.y, m.albedo.z);
-    let surface = hit_point(tri, &TriangleHit { t: hit.t, u: hit.u, v: hit.v, w: hit.w });
-    let len2 = length_squared(dir);
-    let pa = light.pmf / light.area;
-    LightVertex {
-        valid: (albedo.x > 0.0) | (albedo.y > 0.0) | (albedo.z > 0.0),
-        pos: surface.p,
-        error: surface.error,
-        n: stored_normal(tri),
-        albedo,
-        to_light: -(dir * (1.0 / len2.sqrt())),
-        dist2: hit.t * hit.t * len2,
+    LightRay {
+        ok: (local.z > 0.0) & ((le.x > 0.0) | (le.y > 0.0) | (le.z > 0.0)),
+        origin: offset_ray_origin(on_light.p, on_light.error, nl),
+        dir,
         cos_l: local.z,
-        pa,
-        power: le * (INV_PI / pa),
+        pa: light.pmf / light.area,
+        le,
     }
 }
 

@@ -16,7 +16,9 @@
 //! hits, emission, light and BSDF samples, roulette); the renderers (`render_samples`) pass
 //! `NoRecord`, whose hooks compile to nothing.
 use crate::camera::primary_direction;
-use crate::connection::{connect, connect_pooled, connection_weight, connects, inv_pi_area, light_vertex, LightVertex};
+use crate::connection::{
+    connect, connect_pooled, connection_weight, connects, inv_pi_area, light_ray, LightRay, LightVertex,
+};
 use crate::environment;
 use crate::exp::exp_neg;
 use crate::features::{
@@ -34,14 +36,16 @@ use crate::numerics::{offset_ray_origin, sanitize};
 use crate::punctual;
 use crate::raycast::query_recorded;
 use crate::record::{
-    BsdfEvent, LightEvent, NoRecord, Recorder, SurfaceEvent, END_ABSORBED, END_AOV, END_BOUNCE_LIMIT, END_ESCAPED,
-    END_ROULETTE, LIGHT_BLOCKED, LIGHT_DELTA, LIGHT_INVALID, RAY_BOUNCE, RAY_CAMERA,
+    BsdfEvent, Gated, LightEvent, NoRecord, Recorder, SurfaceEvent, END_ABSORBED, END_AOV, END_BOUNCE_LIMIT,
+    END_ESCAPED, END_ROULETTE, LIGHT_BLOCKED, LIGHT_DELTA, LIGHT_INVALID, RAY_BOUNCE, RAY_CAMERA,
 };
 use crate::rng::Sampler;
 use crate::sampling::{light_point, pick_light, power_heuristic, power_heuristic3};
 use crate::scene::SceneView;
 use crate::shadow::{LightSample, ShadowRay};
-use crate::surface::{consistent, emission_at, hit_weights, material_at, shading_normal};
+#[cfg(target_arch = "spirv")]
+use crate::surface::material_at;
+use crate::surface::{consistent, emission_at, hit_weights, shading_normal};
 #[cfg(not(target_arch = "spirv"))]
 use crate::surface::{looks_up_textures, resolve};
 use crate::triangle::{geometric_normal, hit_point, stored_normal, TriangleHit};
@@ -127,55 +131,69 @@ fn trace_path<R: Recorder>(
     path.bidir = connects(scene, p, v);
     // Not a field of `Path`: naga sizes a struct holding `Vec3`s to a multiple of 16 bytes, so
     // nested in another one its end would overlap the next member.
-    let lv = if path.bidir & (p.light_pool == 0) { light_vertex(scene, p, v, &rng) } else { LightVertex::NONE };
+    let light = if path.bidir & (p.light_pool == 0) { light_ray(scene, v, &rng) } else { LightRay::NONE };
+    let mut lv = LightVertex::NONE;
+    // The light subpath's ray, where there is one, goes first through the loop's one query (a
+    // shader inlines the traversal once per query); the recorder hears only the path's rays.
+    let mut light_first = light.ok;
     let mut primary = NO_HIT;
     let mut alive = true;
     while alive {
-        rec.ray(if path.bounce == 0 { RAY_CAMERA } else { RAY_BOUNCE }, path.origin, path.dir, f32::MAX);
-        let traced = query_recorded(scene, p.traversal, path.origin, path.dir, f32::MAX, false, rec);
-        let hit = traced.hit;
-        rec.traced(hit.triangle, hit.t, hit.nodes, hit.tests, traced.restarts);
-        if path.bounce == 0 {
-            primary = hit.triangle;
+        let (origin, dir) = if light_first { (light.origin, light.dir) } else { (path.origin, path.dir) };
+        if !light_first {
+            rec.ray(if path.bounce == 0 { RAY_CAMERA } else { RAY_BOUNCE }, origin, dir, f32::MAX);
         }
-        if (path.bounce == 0) & (p.aov == AOV_COST) {
-            // The cost image: the camera ray's traversal work instead of radiance.
-            path.radiance = Vec3::new(hit.nodes as f32, hit.tests as f32, traced.restarts as f32);
-            rec.end(END_AOV, path.radiance);
-            alive = false;
-        } else if (path.bounce == 0) & ((p.aov == AOV_ALBEDO) | (p.aov == AOV_NORMAL)) {
-            // The first hit's albedo or shading normal, for denoisers and debugging.
-            if hit.is_hit() {
-                let tri = &scene.triangles[hit.triangle as usize];
-                let (flat, _) = facing(geometric_normal(tri), stored_normal(tri), path.dir);
-                let ns = shading_normal(scene, v, hit.triangle, hit_weights(&hit), flat, -normalize(path.dir));
-                let mat = &material_at(scene, v, &hit);
-                path.radiance = if p.aov == AOV_NORMAL { ns } else { albedo(v, mat) };
-            }
-            rec.end(END_AOV, path.radiance);
-            alive = false;
-        } else if hit.is_hit() {
-            alive = shade_vertex(scene, p, v, &mut path, &mut rng, &hit, &lv, rec);
+        let gated = &mut Gated { rec: &mut *rec, on: !light_first };
+        let traced = query_recorded(scene, p.traversal, origin, dir, f32::MAX, false, gated);
+        let hit = traced.hit;
+        if light_first {
+            lv = light.vertex(scene, &hit);
+            light_first = false;
         } else {
-            if v.has(FEATURE_ENVIRONMENT_MAP) & (p.environment_map != NO_ENVIRONMENT_MAP) {
-                // The map, MIS-weighted against its sampling by next-event estimation (the
-                // camera ray and a delta BSDF's ray take it whole).
-                let (le, weight) = map_seen(scene, p.environment_map - 1, path.dir, path.bounce, path.bsdf_pdf);
-                let added = path.beta * le * weight;
-                path.radiance += added;
-                rec.escaped(added);
-            } else if v.has(FEATURE_ENVIRONMENT) {
-                let added = path.beta * xyz(p.environment);
-                path.radiance += added;
-                rec.escaped(added);
-            } else {
-                rec.escaped(Vec3::ZERO);
+            rec.traced(hit.triangle, hit.t, hit.nodes, hit.tests, traced.restarts);
+            if path.bounce == 0 {
+                primary = hit.triangle;
             }
-            rec.end(END_ESCAPED, path.radiance);
-            alive = false;
+            if (path.bounce == 0) & (p.aov == AOV_COST) {
+                // The cost image: the camera ray's traversal work instead of radiance.
+                path.radiance = Vec3::new(hit.nodes as f32, hit.tests as f32, traced.restarts as f32);
+                rec.end(END_AOV, path.radiance);
+                alive = false;
+            } else if hit.is_hit() {
+                // The first hit's albedo or shading normal too (`shade_vertex`).
+                alive = shade_vertex(scene, p, v, &mut path, &mut rng, &hit, &lv, rec);
+            } else if (path.bounce == 0) & first_hit_aov(p) {
+                // No first hit: the albedo or normal image is black there.
+                rec.end(END_AOV, path.radiance);
+                alive = false;
+            } else {
+                if v.has(FEATURE_ENVIRONMENT_MAP) & (p.environment_map != NO_ENVIRONMENT_MAP) {
+                    // The map, MIS-weighted against its sampling by next-event estimation (the
+                    // camera ray and a delta BSDF's ray take it whole).
+                    let (le, weight) = map_seen(scene, p.environment_map - 1, path.dir, path.bounce, path.bsdf_pdf);
+                    let added = path.beta * le * weight;
+                    path.radiance += added;
+                    rec.escaped(added);
+                } else if v.has(FEATURE_ENVIRONMENT) {
+                    let added = path.beta * xyz(p.environment);
+                    path.radiance += added;
+                    rec.escaped(added);
+                } else {
+                    rec.escaped(Vec3::ZERO);
+                }
+                rec.end(END_ESCAPED, path.radiance);
+                alive = false;
+            }
         }
     }
     PathSample { radiance: path.radiance, primary }
+}
+
+/// Whether the render is the image of the first hits' albedo or shading normal (for denoisers
+/// and debugging).
+#[inline(always)]
+fn first_hit_aov(p: &RenderParams) -> bool {
+    (p.aov == AOV_ALBEDO) | (p.aov == AOV_NORMAL)
 }
 
 /// The environment map (at `o` in the texture words) seen by a ray leaving the scene along
@@ -296,8 +314,12 @@ fn shade_vertex<R: Recorder>(
 
     path.beta *= medium_transmittance(v, mat, ng, dir, hit.t);
 
+    // The albedo or shading normal image ends the path at its first hit, once the shading
+    // normal is known, through the same code as the radiance (a shader holds one copy of the
+    // material's and the normal's lookups); nothing is added to it before.
+    let aov = (path.bounce == 0) & first_hit_aov(p);
     // Only emitters emit, and every emitter is in the light table.
-    let le = if v.has(FEATURE_EMITTERS) { emitted(mat, ng, dir) } else { Vec3::ZERO };
+    let le = if v.has(FEATURE_EMITTERS) & !aov { emitted(mat, ng, dir) } else { Vec3::ZERO };
     if (le.x > 0.0) | (le.y > 0.0) | (le.z > 0.0) {
         let mut weight = 1.0;
         if (path.bounce > 0) & (info.light != NO_LIGHT) {
@@ -316,7 +338,7 @@ fn shade_vertex<R: Recorder>(
         path.radiance += added;
         rec.emission(le, weight, added);
     }
-    if last {
+    if last & !aov {
         rec.end(END_BOUNCE_LIMIT, path.radiance);
         return false;
     }
@@ -328,6 +350,11 @@ fn shade_vertex<R: Recorder>(
     let spawn = offset_ray_origin(pos, surface.error, nf);
     let wo = -normalize(dir);
     let ns = shading_normal(scene, v, hit.triangle, hit_weights(hit), nf, wo);
+    if aov {
+        path.radiance = if p.aov == AOV_NORMAL { ns } else { albedo(v, mat) };
+        rec.end(END_AOV, path.radiance);
+        return false;
+    }
     // This vertex's area density from the vertex before (BSDF-sampled there), for the
     // connection strategy's MIS weight.
     let inv_pi_a = if path.bidir & (path.bounce > 0) { inv_pi_area(path.prev_cos, n, dir, hit.t) } else { 0.0 };
@@ -429,8 +456,13 @@ fn shade_vertex<R: Recorder>(
             if lights {
                 nee.finish(open, &mut path.radiance, rec);
             }
-        } else if open {
-            path.radiance += added;
+        } else {
+            if open {
+                path.radiance += added;
+            }
+            if connects {
+                rec.connection(ray.active, if open { added } else { Vec3::ZERO });
+            }
         }
         k += 1;
     }

@@ -141,6 +141,13 @@ pub trait Recorder {
     #[inline(always)]
     fn light(&mut self, _l: LightEvent) {}
 
+    /// The connection to a light vertex at the vertex (`connection`): whether a shadow ray was
+    /// cast (its `ray`, `node` and `traced` calls come before it; none where the two cannot see
+    /// each other) and what it added (zero where it was blocked or not cast). Called at every
+    /// vertex that connects, after `light`.
+    #[inline(always)]
+    fn connection(&mut self, _cast: bool, _added: Vec3) {}
+
     /// The BSDF sample at the vertex.
     #[inline(always)]
     fn bsdf(&mut self, _b: BsdfEvent) {}
@@ -160,3 +167,91 @@ pub trait Recorder {
 pub struct NoRecord;
 
 impl Recorder for NoRecord {}
+
+/// `rec` where `on`, else nothing: a query that serves rays the recorder hears of and rays it
+/// does not (the integrator's path rays and its light subpath's first ray) passes it this.
+pub struct Gated<'a, R: Recorder> {
+    pub rec: &'a mut R,
+    pub on: bool,
+}
+
+impl<R: Recorder> Recorder for Gated<'_, R> {
+    const ACTIVE: bool = R::ACTIVE;
+
+    #[inline(always)]
+    fn ray(&mut self, kind: u32, origin: Vec3, dir: Vec3, t_max: f32) {
+        if self.on {
+            self.rec.ray(kind, origin, dir, t_max)
+        }
+    }
+
+    #[inline(always)]
+    fn node(&mut self, node: u32) {
+        if self.on {
+            self.rec.node(node)
+        }
+    }
+
+    #[inline(always)]
+    fn traced(&mut self, triangle: u32, t: f32, nodes: u32, tests: u32, restarts: u32) {
+        if self.on {
+            self.rec.traced(triangle, t, nodes, tests, restarts)
+        }
+    }
+
+    #[inline(always)]
+    fn escaped(&mut self, added: Vec3) {
+        if self.on {
+            self.rec.escaped(added)
+        }
+    }
+
+    #[inline(always)]
+    fn surface(&mut self, s: SurfaceEvent) {
+        if self.on {
+            self.rec.surface(s)
+        }
+    }
+
+    #[inline(always)]
+    fn emission(&mut self, le: Vec3, mis_weight: f32, added: Vec3) {
+        if self.on {
+            self.rec.emission(le, mis_weight, added)
+        }
+    }
+
+    #[inline(always)]
+    fn light(&mut self, l: LightEvent) {
+        if self.on {
+            self.rec.light(l)
+        }
+    }
+
+    #[inline(always)]
+    fn connection(&mut self, cast: bool, added: Vec3) {
+        if self.on {
+            self.rec.connection(cast, added)
+        }
+    }
+
+    #[inline(always)]
+    fn bsdf(&mut self, b: BsdfEvent) {
+        if self.on {
+            self.rec.bsdf(b)
+        }
+    }
+
+    #[inline(always)]
+    fn roulette(&mut self, survival: f32, u: f32, survived: bool, throughput: Vec3) {
+        if self.on {
+            self.rec.roulette(survival, u, survived, throughput)
+        }
+    }
+
+    #[inline(always)]
+    fn end(&mut self, reason: u32, radiance: Vec3) {
+        if self.on {
+            self.rec.end(reason, radiance)
+        }
+    }
+}

@@ -88,6 +88,10 @@ try {
   if (!info.startsWith("Pixel (")) fail(`the pixel panel says ${JSON.stringify(info)}`);
   if (drawn !== rows) fail(`${rows} vertices listed but ${drawn} drawn`);
   if (!(ink > 20)) fail("the path is not drawn over the image");
+  // The box's walls are Lambertian, so the path connects to light subpaths: the first vertex
+  // lists its connection.
+  const firstRow = await page.$eval("#vertices tbody tr", (r) => r.textContent);
+  if (!/connection: (unblocked|blocked|invalid)/.test(firstRow)) fail(`no connection listed at the first vertex: ${JSON.stringify(firstRow)}`);
   // The lit scene has no warnings; choosing the second one, which nothing lights, shows why it
   // renders black.
   const quiet = await page.$eval("#warnings", (w) => w.textContent);

@@ -11,8 +11,8 @@
 mod record;
 
 pub use record::{
-    material_kind_name, BsdfRecord, EmissionRecord, EscapeRecord, LightRecord, PathRecord, RouletteRecord,
-    ShadowRayRecord, TraversalRecord, VertexRecord, MAX_RECORDED_PER_RAY,
+    material_kind_name, BsdfRecord, ConnectionRecord, EmissionRecord, EscapeRecord, LightRecord, PathRecord,
+    RouletteRecord, ShadowRayRecord, TraversalRecord, VertexRecord, MAX_RECORDED_PER_RAY,
 };
 
 use crate::render::{features, Compiled};

@@ -39,8 +39,9 @@ pub struct PathRecord {
     /// The camera ray: origin (the eye, world) and unit direction.
     pub camera_origin: [f64; 3],
     pub camera_direction: [f32; 3],
-    /// The path's vertices in order, the camera ray's hit first (none for an auxiliary image,
-    /// `--aov`, which answers at the camera ray: `end` is then "aov").
+    /// The path's vertices in order, the camera ray's hit first. An auxiliary image (`--aov`)
+    /// answers at the camera ray, `end` then "aov": the cost image with no vertex, the albedo and
+    /// normal images with the first hit's, which neither emits nor samples anything.
     pub vertices: Vec<VertexRecord>,
     /// The ray that left the scene, where the path ended so.
     pub escaped: Option<EscapeRecord>,
@@ -77,6 +78,9 @@ pub struct VertexRecord {
     /// Next-event estimation here; `None` at a vertex that does none (no lights in the scene, or
     /// the path's last vertex).
     pub light: Option<LightRecord>,
+    /// The connection to a light subpath's vertex here (`shared::connection`); `None` where the
+    /// path does not connect (the setting, the scene, the path's last vertex).
+    pub connection: Option<ConnectionRecord>,
     /// The BSDF sample here; `None` at the path's last vertex.
     pub bsdf: Option<BsdfRecord>,
     /// The path's throughput after this vertex (its BSDF weight and roulette applied).
@@ -142,10 +146,10 @@ pub struct LightRecord {
     pub shadow_ray: Option<ShadowRayRecord>,
 }
 
-/// A shadow ray toward the light sample.
+/// A shadow ray toward the light sample or the light vertex.
 #[derive(Clone, Debug, Serialize)]
 pub struct ShadowRayRecord {
-    /// Origin (world) and direction: the ray ends at `t_max` × direction, just short of the light.
+    /// Origin (world) and direction: the ray ends at `t_max` × direction, just short of its target.
     pub origin: [f64; 3],
     pub direction: [f32; 3],
     pub t_max: f32,
@@ -153,6 +157,21 @@ pub struct ShadowRayRecord {
     pub occluder: Option<u32>,
     #[serde(flatten)]
     pub traversal: TraversalRecord,
+}
+
+/// The connection to a light subpath's vertex at an eye vertex.
+#[derive(Clone, Debug, Serialize)]
+pub struct ConnectionRecord {
+    /// "unblocked" (the shadow ray reached the light vertex), "blocked", or "invalid" (no shadow
+    /// ray: no light vertex, or the two do not face each other).
+    pub status: &'static str,
+    /// The light vertex joined (world) and its pixel, where a shadow ray was cast.
+    pub point: Option<[f64; 3]>,
+    pub pixel: Option<[f64; 2]>,
+    /// What was added to the radiance (zero unless "unblocked").
+    pub contribution: [f32; 3],
+    /// The shadow ray, where one was cast.
+    pub shadow_ray: Option<ShadowRayRecord>,
 }
 
 /// The BSDF sample at a vertex.
@@ -302,6 +321,16 @@ impl<'a> Collector<'a> {
     fn vertex(&mut self) -> Option<&mut VertexRecord> {
         self.vertices.last_mut()
     }
+
+    fn shadow_record(&self, r: Traced) -> ShadowRayRecord {
+        ShadowRayRecord {
+            origin: self.world(r.origin).to_array(),
+            direction: arr(r.dir),
+            t_max: r.t_max,
+            occluder: (r.triangle != NO_HIT).then_some(r.triangle),
+            traversal: r.traversal,
+        }
+    }
 }
 
 impl Recorder for Collector<'_> {
@@ -376,6 +405,7 @@ impl Recorder for Collector<'_> {
             front: s.front,
             emission: None,
             light: None,
+            connection: None,
             bsdf: None,
             throughput: arr(self.throughput),
             roulette: None,
@@ -394,13 +424,7 @@ impl Recorder for Collector<'_> {
         let shadow = self.shadow_ray.take().filter(|_| (l.status == LIGHT_UNBLOCKED) | (l.status == LIGHT_BLOCKED));
         let delta = l.status == LIGHT_DELTA;
         let point = (!delta).then(|| self.world(l.point));
-        let shadow_ray = shadow.map(|r| ShadowRayRecord {
-            origin: self.world(r.origin).to_array(),
-            direction: arr(r.dir),
-            t_max: r.t_max,
-            occluder: (r.triangle != NO_HIT).then_some(r.triangle),
-            traversal: r.traversal,
-        });
+        let shadow_ray = shadow.map(|r| self.shadow_record(r));
         let record = LightRecord {
             status: light_status_name(l.status),
             blocked: l.status == LIGHT_BLOCKED,
@@ -416,6 +440,27 @@ impl Recorder for Collector<'_> {
         };
         if let Some(v) = self.vertex() {
             v.light = Some(record);
+        }
+    }
+
+    fn connection(&mut self, cast: bool, added: Vec3) {
+        let shadow = if cast { self.shadow_ray.take() } else { None };
+        let blocked = shadow.as_ref().is_some_and(|r| r.triangle != NO_HIT);
+        // The ray ends just short of the light vertex: its direction is the whole segment.
+        let point = shadow.as_ref().map(|r| self.world(r.origin + r.dir));
+        let record = ConnectionRecord {
+            status: match (&shadow, blocked) {
+                (None, _) => "invalid",
+                (Some(_), true) => "blocked",
+                (Some(_), false) => "unblocked",
+            },
+            point: point.map(|p| p.to_array()),
+            pixel: point.and_then(|p| (self.project)(p)),
+            contribution: arr(added),
+            shadow_ray: shadow.map(|r| self.shadow_record(r)),
+        };
+        if let Some(v) = self.vertex() {
+            v.connection = Some(record);
         }
     }
 

@@ -248,10 +248,12 @@ function onPath(m) {
       v.emission ? `emits ${fmt(v.emission.emitted)} × mis ${num(v.emission.mis_weight)}` : "",
     ]);
     const l = v.light;
+    const k = v.connection;
     cell(l ? [
       `${l.status}${l.light !== null ? `: light ${l.light}, triangle ${l.triangle}` : ""}`,
       l.status !== "delta" ? `pdf ${num(l.light_pdf)}, bsdf pdf ${num(l.bsdf_pdf)}` : "",
       l.status !== "delta" ? `mis ${num(l.mis_weight)}, adds ${fmt(l.contribution)}` : "",
+      k ? `connection: ${k.status}${k.status === "unblocked" ? `, adds ${fmt(k.contribution)}` : ""}` : "",
     ] : ["—"], l ? (l.blocked ? "blocked" : l.status === "unblocked" ? "lit" : "") : "");
     cell([
       v.bsdf ? `wi ${fmt(v.bsdf.wi)}, pdf ${v.bsdf.delta ? "δ" : num(v.bsdf.pdf)}${v.bsdf.valid ? "" : " (ends)"}` : "no BSDF sample (last vertex)",
@@ -262,6 +264,7 @@ function onPath(m) {
     cell([
       `${v.nodes} nodes, ${v.tests} triangle tests${v.restarts ? `, ${v.restarts} restarts` : ""}`,
       l && l.shadow_ray ? `shadow ray: ${l.shadow_ray.nodes} nodes, ${l.shadow_ray.tests} tests` : "",
+      k && k.shadow_ray ? `connection's ray: ${k.shadow_ray.nodes} nodes, ${k.shadow_ray.tests} tests` : "",
     ]);
   });
   drawPath();
@@ -291,6 +294,17 @@ function drawPath() {
     if (!from || !to) return;
     // Green: the light was reached; red: blocked; grey: no shadow ray (the sample was invalid).
     octx.strokeStyle = v.light.blocked ? "#ff7b72" : v.light.status === "unblocked" ? "#7ee787" : "#777";
+    octx.beginPath(); octx.moveTo(...from); octx.lineTo(...to); octx.stroke();
+  });
+  // Connections to light subpaths, dotted: blue where the light vertex was reached, red where
+  // blocked.
+  octx.setLineDash([1.5 * s, 3 * s]);
+  m.vertices.forEach((v, i) => {
+    const from = points[i + 1];
+    const k = v.connection;
+    const to = k && k.point ? (k.pixel || project(k.point)) : null;
+    if (!from || !to) return;
+    octx.strokeStyle = k.status === "blocked" ? "#ff7b72" : "#79c0ff";
     octx.beginPath(); octx.moveTo(...from); octx.lineTo(...to); octx.stroke();
   });
   octx.setLineDash([]);

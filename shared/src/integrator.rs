@@ -373,66 +373,18 @@ fn shade_vertex<R: Recorder>(
         let (index, u1) = pick_light(scene.lights, scene.light_count, many, u_select);
         let light = scene.lights[index as usize];
         let other = (v.has(FEATURE_ENVIRONMENT_MAP) | v.has(FEATURE_PUNCTUAL)) & (light.triangle >= LIGHT_NOT_TRIANGLE);
-        if other {
-            nee = other_light_sample(
-                scene,
-                v,
-                path.beta,
-                mat,
-                light.triangle,
-                light.pmf,
-                index,
-                pos,
-                spawn,
-                surface.error,
-                nf,
-                ns,
-                wo,
-                front,
-                u1,
-                u_light,
-            );
+        // Where the sample lies and what arrives from there, by the light's kind; then one
+        // evaluation of the BSDF toward it (`light_sample_toward`: a shader holds one copy).
+        let d = if other {
+            other_light_direction(scene, v, light.triangle, light.pmf, pos, u1, u_light)
         } else {
-            let lp = light_point(&scene.triangles[light.triangle as usize], u1, u_light);
-            let (on_light, nl) = (lp.at, lp.n);
-            let q = on_light.p;
-            let to_light = q - pos;
-            let dist2 = length_squared(to_light);
-            let wi = to_light * (1.0 / dist2.sqrt());
-            let cos_l = -dot(nl, wi);
-            let (f, pdf_bsdf) = eval(v, mat, scene.textures, ns, wo, wi, front);
-            nee.event = LightEvent {
-                status: LIGHT_INVALID,
-                light: index,
-                triangle: light.triangle,
-                point: q,
-                light_pdf: 0.0,
-                bsdf_pdf: pdf_bsdf,
-                mis_weight: 0.0,
-                contribution: Vec3::ZERO,
-            };
-            if (cos_l > 0.0) & (pdf_bsdf > 0.0) & (dist2 > 0.0) & consistent(v, nf, ns, wi) {
-                let light_pdf = light.pmf * dist2 / (cos_l * light.area);
-                let target = offset_ray_origin(q, on_light.error, nl);
-                // A light behind a transmitting surface is seen through it: the shadow ray leaves
-                // from the far side.
-                let cos_i = dot(ns, wi);
-                let from = if dot(nf, wi) < 0.0 { offset_ray_origin(pos, surface.error, -nf) } else { spawn };
-                nee.ray = ShadowRay::new(from, target - from, 1.0 - SHADOW_EPSILON);
-                nee.event.status = LIGHT_BLOCKED;
-                nee.event.light_pdf = light_pdf;
-                let weight = if path.bidir {
-                    let q2 = light.pmf / light.area * dot(nf, wi).abs() * inv_pi_a * connection_weight(p);
-                    power_heuristic3(light_pdf, pdf_bsdf, q2)
-                } else {
-                    power_heuristic(light_pdf, pdf_bsdf)
-                };
-                nee.event.mis_weight = weight;
-                let lmat = &scene.materials[scene.info[light.triangle as usize].material as usize];
-                let le = emission_at(scene, v, lmat, light.triangle, lp.b);
-                nee.added = path.beta * f * le * (cos_i.abs() * weight / light_pdf);
-            }
-        }
+            triangle_light_direction(scene, v, &light, pos, u1, u_light)
+        };
+        // With connections a triangle's sample is one of three strategies (`connection`).
+        let three = path.bidir & !other;
+        let q2 = if three { d.pa * dot(nf, d.wi).abs() * inv_pi_a * connection_weight(p) } else { 0.0 };
+        let at = Shading { pos, spawn, error: surface.error, nf, ns, wo, front };
+        nee = light_sample_toward(scene, v, path.beta, mat, &d, index, light.triangle, &at, three, q2);
     }
 
     let connects = path.bidir & (path.bounce < v.max_bounces);
@@ -511,11 +463,184 @@ fn shade_vertex<R: Recorder>(
     true
 }
 
+/// Where next-event estimation's light sample lies, before the BSDF is evaluated toward it.
+#[derive(Clone, Copy)]
+pub(crate) struct LightDirection {
+    /// The unit direction toward the sample.
+    wi: Vec3,
+    /// The radiance arriving along `wi` if nothing blocks it.
+    incident: Vec3,
+    /// The sample's solid-angle density (a punctual light's pick probability).
+    light_pdf: f32,
+    /// Where the shadow ray ends (unless `infinite`), and the point the recorder is told of.
+    target: Vec3,
+    point: Vec3,
+    /// A triangle's pick probability over its area (the connection's weight needs it).
+    pa: f32,
+    /// The light lies at infinity (the shadow ray has no end), is a delta (takes its whole
+    /// weight), and can be sampled from here at all.
+    infinite: bool,
+    delta: bool,
+    ok: bool,
+    /// The recorder is told of `light_pdf` also where the sample is not taken.
+    tell_pdf: bool,
+}
+
+/// The shading point a light sample is taken at: position, the spawn point on the side of the
+/// flat normal `nf`, the position's rounding error, the shading normal, the direction toward
+/// the ray's origin and the side hit.
+#[derive(Clone, Copy)]
+pub(crate) struct Shading {
+    pub pos: Vec3,
+    pub spawn: Vec3,
+    pub error: Vec3,
+    pub nf: Vec3,
+    pub ns: Vec3,
+    pub wo: Vec3,
+    pub front: bool,
+}
+
+/// A point on emitting triangle `light` (uniforms `u1`, `u2`) seen from `pos`.
+#[inline(always)]
+fn triangle_light_direction(
+    scene: &SceneView,
+    v: Variant,
+    light: &crate::layout::Light,
+    pos: Vec3,
+    u1: f32,
+    u2: f32,
+) -> LightDirection {
+    let lp = light_point(&scene.triangles[light.triangle as usize], u1, u2);
+    let (on_light, nl) = (lp.at, lp.n);
+    let q = on_light.p;
+    let to_light = q - pos;
+    let dist2 = length_squared(to_light);
+    let wi = to_light * (1.0 / dist2.sqrt());
+    let cos_l = -dot(nl, wi);
+    let lmat = &scene.materials[scene.info[light.triangle as usize].material as usize];
+    LightDirection {
+        wi,
+        incident: emission_at(scene, v, lmat, light.triangle, lp.b),
+        light_pdf: light.pmf * dist2 / (cos_l * light.area),
+        target: offset_ray_origin(q, on_light.error, nl),
+        point: q,
+        pa: light.pmf / light.area,
+        infinite: false,
+        delta: false,
+        ok: (cos_l > 0.0) & (dist2 > 0.0),
+        tell_pdf: false,
+    }
+}
+
+/// A sample of a light-table entry that is not a triangle (`kind`: `LIGHT_NOT_TRIANGLE |
+/// offset`, with `LIGHT_ENVIRONMENT_BIT` for the environment map), picked with probability
+/// `pmf`: the map sampled by its distribution, or a punctual light, a delta.
+#[inline(always)]
+fn other_light_direction(
+    scene: &SceneView,
+    v: Variant,
+    kind: u32,
+    pmf: f32,
+    pos: Vec3,
+    u1: f32,
+    u2: f32,
+) -> LightDirection {
+    let o = kind & LIGHT_OFFSET_MASK;
+    let env = v.has(FEATURE_ENVIRONMENT_MAP) & (kind & LIGHT_ENVIRONMENT_BIT != 0);
+    let mut d = LightDirection {
+        wi: Vec3::Z,
+        incident: Vec3::ZERO,
+        light_pdf: 0.0,
+        target: pos,
+        point: pos,
+        pa: 0.0,
+        infinite: true,
+        delta: false,
+        ok: false,
+        tell_pdf: true,
+    };
+    if env {
+        let s = environment::sample(scene.textures, o, u1, u2);
+        d.wi = s.wi;
+        d.incident = s.radiance;
+        d.light_pdf = pmf * s.pdf;
+    } else if v.has(FEATURE_PUNCTUAL) {
+        let s = punctual::sample(scene.textures, o, pos);
+        d.wi = s.wi;
+        d.incident = s.incident;
+        d.light_pdf = pmf;
+        d.target = s.target;
+        d.infinite = s.infinite;
+        d.delta = true;
+    }
+    d.point = d.target;
+    let visible = (d.incident.x > 0.0) | (d.incident.y > 0.0) | (d.incident.z > 0.0);
+    d.ok = visible & (d.light_pdf > 0.0);
+    d
+}
+
+/// Next-event estimation's sample `d` of light `index` (`kind`, its triangle or table entry)
+/// at shading point `at`: the BSDF evaluated toward it, the shadow ray (not yet traced) and the
+/// contribution for a path of throughput `beta`, MIS-weighted against the BSDF, or with `three`
+/// against the BSDF and the connection (whose density is `q2`); a delta takes its whole weight.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn light_sample_toward(
+    scene: &SceneView,
+    v: Variant,
+    beta: Vec3,
+    mat: &crate::layout::Material,
+    d: &LightDirection,
+    index: u32,
+    kind: u32,
+    at: &Shading,
+    three: bool,
+    q2: f32,
+) -> LightSample {
+    let wi = d.wi;
+    let (f, pdf_bsdf) = eval(v, mat, scene.textures, at.ns, at.wo, wi, at.front);
+    let mut s = LightSample {
+        event: LightEvent {
+            status: LIGHT_INVALID,
+            light: index,
+            triangle: kind,
+            point: d.point,
+            light_pdf: if d.tell_pdf { d.light_pdf } else { 0.0 },
+            bsdf_pdf: pdf_bsdf,
+            mis_weight: 0.0,
+            contribution: Vec3::ZERO,
+        },
+        ray: ShadowRay::NONE,
+        added: Vec3::ZERO,
+    };
+    if d.ok & (pdf_bsdf > 0.0) & consistent(v, at.nf, at.ns, wi) {
+        let cos_i = dot(at.ns, wi);
+        // A light behind a transmitting surface is seen through it: the shadow ray leaves from
+        // the far side.
+        let from = if dot(at.nf, wi) < 0.0 { offset_ray_origin(at.pos, at.error, -at.nf) } else { at.spawn };
+        let (shadow_dir, shadow_t) = if d.infinite { (wi, f32::MAX) } else { (d.target - from, 1.0 - SHADOW_EPSILON) };
+        s.ray = ShadowRay::new(from, shadow_dir, shadow_t);
+        let weight = if d.delta {
+            1.0
+        } else if three {
+            power_heuristic3(d.light_pdf, pdf_bsdf, q2)
+        } else {
+            power_heuristic(d.light_pdf, pdf_bsdf)
+        };
+        s.event.status = LIGHT_BLOCKED;
+        s.event.light_pdf = d.light_pdf;
+        s.event.mis_weight = weight;
+        s.added = beta * f * d.incident * (cos_i.abs() * weight / d.light_pdf);
+    }
+    s
+}
+
 /// Next-event estimation toward a light-table entry that is not a triangle (`kind`:
 /// `LIGHT_NOT_TRIANGLE | offset`, with `LIGHT_ENVIRONMENT_BIT` for the environment map): the map
 /// is sampled by its distribution and MIS-weighted against the BSDF; a punctual light is a delta
 /// and takes its whole weight. Returns the sample with its shadow ray, not yet traced, and its
-/// contribution for a path of throughput `beta` (also the lane integrator's, lane by lane).
+/// contribution for a path of throughput `beta` (the lane integrator's, lane by lane).
+#[cfg(not(target_arch = "spirv"))]
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn other_light_sample(
@@ -526,65 +651,12 @@ pub(crate) fn other_light_sample(
     kind: u32,
     pmf: f32,
     index: u32,
-    pos: Vec3,
-    spawn: Vec3,
-    error: Vec3,
-    nf: Vec3,
-    ns: Vec3,
-    wo: Vec3,
-    front: bool,
+    at: &Shading,
     u1: f32,
     u2: f32,
 ) -> LightSample {
-    let o = kind & LIGHT_OFFSET_MASK;
-    let env = v.has(FEATURE_ENVIRONMENT_MAP) & (kind & LIGHT_ENVIRONMENT_BIT != 0);
-    let mut wi = Vec3::Z;
-    let mut incident = Vec3::ZERO;
-    let mut light_pdf = 0.0;
-    let mut target = pos;
-    let mut infinite = true;
-    let mut delta = false;
-    if env {
-        let s = environment::sample(scene.textures, o, u1, u2);
-        wi = s.wi;
-        incident = s.radiance;
-        light_pdf = pmf * s.pdf;
-    } else if v.has(FEATURE_PUNCTUAL) {
-        let s = punctual::sample(scene.textures, o, pos);
-        wi = s.wi;
-        incident = s.incident;
-        light_pdf = pmf;
-        target = s.target;
-        infinite = s.infinite;
-        delta = true;
-    }
-    let (f, pdf_bsdf) = eval(v, mat, scene.textures, ns, wo, wi, front);
-    let mut s = LightSample {
-        event: LightEvent {
-            status: LIGHT_INVALID,
-            light: index,
-            triangle: kind,
-            point: target,
-            light_pdf,
-            bsdf_pdf: pdf_bsdf,
-            mis_weight: 0.0,
-            contribution: Vec3::ZERO,
-        },
-        ray: ShadowRay::NONE,
-        added: Vec3::ZERO,
-    };
-    let visible = (incident.x > 0.0) | (incident.y > 0.0) | (incident.z > 0.0);
-    if visible & (light_pdf > 0.0) & (pdf_bsdf > 0.0) & consistent(v, nf, ns, wi) {
-        let cos_i = dot(ns, wi);
-        let from = if dot(nf, wi) < 0.0 { offset_ray_origin(pos, error, -nf) } else { spawn };
-        let (shadow_dir, shadow_t) = if infinite { (wi, f32::MAX) } else { (target - from, 1.0 - SHADOW_EPSILON) };
-        s.ray = ShadowRay::new(from, shadow_dir, shadow_t);
-        let weight = if delta { 1.0 } else { power_heuristic(light_pdf, pdf_bsdf) };
-        s.event.status = LIGHT_BLOCKED;
-        s.event.mis_weight = weight;
-        s.added = beta * f * incident * (cos_i.abs() * weight / light_pdf);
-    }
-    s
+    let d = other_light_direction(scene, v, kind, pmf, at.pos, u1, u2);
+    light_sample_toward(scene, v, beta, mat, &d, index, kind, at, false, 0.0)
 }
 
 /// Adds this pass's samples (`p.sample_start`, `p.sample_count`) of pixel (x, y) to its running

@@ -27,7 +27,7 @@ use crate::features::{
 };
 use crate::glam::{Vec3, Vec4};
 use crate::integrator::{
-    map_seen, medium_transmittance, other_light_sample, PixelSpan, RR_MAX_SURVIVAL, SHADOW_EPSILON,
+    map_seen, medium_transmittance, other_light_sample, PixelSpan, Shading, RR_MAX_SURVIVAL, SHADOW_EPSILON,
 };
 use crate::kdtree::Hit;
 use crate::layout::{
@@ -674,13 +674,15 @@ fn next_event(
                     picks.triangle[i],
                     pmf[i],
                     picks.index[i],
-                    pos.lane(i),
-                    spawn.lane(i),
-                    Vec3::splat(error[i]),
-                    nf.lane(i),
-                    ns.lane(i),
-                    k.wo.lane(i),
-                    k.front.test(i),
+                    &Shading {
+                        pos: pos.lane(i),
+                        spawn: spawn.lane(i),
+                        error: Vec3::splat(error[i]),
+                        nf: nf.lane(i),
+                        ns: ns.lane(i),
+                        wo: k.wo.lane(i),
+                        front: k.front.test(i),
+                    },
                     picks.u[i],
                     u_light[i],
                 );

@@ -23,7 +23,8 @@ use paths::repo;
 use shared::features::{Variant, FEATURES_ALL};
 use shared::glam::{Vec3, Vec4};
 use shared::integrator::{render_samples, PixelSpan};
-use shared::layout::NO_HIT;
+use shared::layout::{RenderParams, NO_HIT};
+use shared::scene::SceneView;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -197,16 +198,14 @@ fn later_samples_replay_what_the_renderer_adds() {
         for y in (0..SIZE).step_by(3) {
             for x in (0..SIZE).step_by(3) {
                 let r = debug::replay(c, &s, x, y, sample).unwrap();
-                let (mut sum, mut sum_sq, mut primary) = (Vec4::ZERO, Vec4::ZERO, NO_HIT);
-                let (sums, sums_sq) = (core::slice::from_mut(&mut sum), core::slice::from_mut(&mut sum_sq));
-                let span = [PixelSpan { x, start: sample, count: 1 }];
-                variant(&view, &params, y, &span, 1, 1, sums, sums_sq, core::slice::from_mut(&mut primary));
+                let (sum, generic) = renderers_add(variant, &view, &params, x, y, sample);
                 assert_eq!(bits(r.radiance), bits(sum.truncate().to_array()), "({x}, {y}) sample {sample}");
                 assert_eq!(r.zeroed, sum.w == 1.0);
-                let generic = Variant::new(FEATURES_ALL, &params);
-                let (mut sum, mut sum_sq) = (Vec4::ZERO, Vec4::ZERO);
-                render_samples(&view, &params, generic, x, y, sample, 1, &mut sum, &mut sum_sq, &mut primary);
-                assert_eq!(bits(r.radiance), bits(sum.truncate().to_array()), "({x}, {y}) sample {sample}, generic");
+                assert_eq!(
+                    bits(r.radiance),
+                    bits(generic.truncate().to_array()),
+                    "({x}, {y}) sample {sample}, generic"
+                );
                 checked += 1;
             }
         }
@@ -251,15 +250,9 @@ fn connections_are_recorded_and_light_subpaths_stay_out_of_the_record() {
                     let at = format!("pool {light_pool}, ({x}, {y}) sample {sample}");
                     let r = debug::replay(c, &s, x, y, sample).unwrap();
                     check_record(c, &r);
-                    let (mut sum, mut sum_sq, mut primary) = (Vec4::ZERO, Vec4::ZERO, NO_HIT);
-                    let (sums, sums_sq) = (core::slice::from_mut(&mut sum), core::slice::from_mut(&mut sum_sq));
-                    let span = [PixelSpan { x, start: sample, count: 1 }];
-                    variant(&view, &params, y, &span, 1, 1, sums, sums_sq, core::slice::from_mut(&mut primary));
+                    let (sum, generic) = renderers_add(variant, &view, &params, x, y, sample);
                     assert_eq!(bits(r.radiance), bits(sum.truncate().to_array()), "{at}");
-                    let generic = Variant::new(FEATURES_ALL, &params);
-                    let (mut sum, mut sum_sq) = (Vec4::ZERO, Vec4::ZERO);
-                    render_samples(&view, &params, generic, x, y, sample, 1, &mut sum, &mut sum_sq, &mut primary);
-                    assert_eq!(bits(r.radiance), bits(sum.truncate().to_array()), "{at}, generic");
+                    assert_eq!(bits(r.radiance), bits(generic.truncate().to_array()), "{at}, generic");
                     checked += 1;
                     lit += (r.radiance.iter().sum::<f32>() > 0.0) as u32;
                     for v in &r.vertices {
@@ -275,6 +268,27 @@ fn connections_are_recorded_and_light_subpaths_stay_out_of_the_record() {
         let statuses: Vec<_> = statuses.into_iter().collect();
         assert_eq!(statuses, ["blocked", "invalid", "unblocked"], "pool {light_pool}");
     }
+}
+
+/// What the CPU renderer's `variant` and the generic `shared::integrator::render_samples` add
+/// to pixel (x, y)'s sums for the sample range [sample, sample + 1) (the fourth channel: 1 where
+/// the sample was zeroed).
+fn renderers_add(
+    variant: cpu::VariantFn,
+    view: &SceneView,
+    params: &RenderParams,
+    x: u32,
+    y: u32,
+    sample: u32,
+) -> (Vec4, Vec4) {
+    let (mut sum, mut sum_sq, mut primary) = (Vec4::ZERO, Vec4::ZERO, NO_HIT);
+    let (sums, sums_sq) = (core::slice::from_mut(&mut sum), core::slice::from_mut(&mut sum_sq));
+    let span = [PixelSpan { x, start: sample, count: 1 }];
+    variant(view, params, y, &span, 1, 1, sums, sums_sq, core::slice::from_mut(&mut primary));
+    let generic = Variant::new(FEATURES_ALL, params);
+    let (mut generic_sum, mut sum_sq) = (Vec4::ZERO, Vec4::ZERO);
+    render_samples(view, params, generic, x, y, sample, 1, &mut generic_sum, &mut sum_sq, &mut primary);
+    (sum, generic_sum)
 }
 
 /// Checks one record's inner consistency; returns nothing, panics with the pixel on failure.

@@ -39,11 +39,10 @@
 //! at a time (`lanes::integrator`).
 use crate::features::{Variant, FEATURES_ALL, FEATURE_CONNECT, FEATURE_MANY_EMITTERS};
 use crate::glam::Vec3;
-use crate::integrator::SHADOW_EPSILON;
 use crate::kdtree::Hit;
 use crate::layout::{RenderParams, AOV_RADIANCE, LIGHT_NOT_TRIANGLE};
 use crate::numerics::offset_ray_origin;
-use crate::raycast::{any, closest, query_recorded};
+use crate::raycast::{closest, query_recorded};
 use crate::record::NoRecord;
 use crate::rng::Sampler;
 use crate::sampling::{cosine_hemisphere, light_point, orthonormal_basis, pick_light, power_heuristic3, INV_PI};
@@ -205,7 +204,7 @@ pub fn first_hit_sees_light(scene: &SceneView, p: &RenderParams, x: f32, y: f32,
     let from = offset_ray_origin(at.p, at.error, nf);
     // The side the point sees: the emitting one, by the test above.
     let target = offset_ray_origin(on_light.p, on_light.error, nl);
-    Some(!any(scene, p.traversal, from, target - from, 1.0 - SHADOW_EPSILON).hit.is_hit())
+    Some(ShadowRay::toward(from, target).open(scene, p, &mut NoRecord))
 }
 
 /// The first vertex of a light subpath: a point on an emitting triangle (picked as next-event
@@ -450,12 +449,6 @@ impl PooledLink {
     }
 }
 
-/// The shadow ray from `spawn` to `target`.
-#[inline(always)]
-fn shadow_to(spawn: Vec3, target: Vec3) -> ShadowRay {
-    ShadowRay::new(spawn, target - spawn, 1.0 - SHADOW_EPSILON)
-}
-
 /// The connection strategy at an eye vertex (Lambertian, flat normal `nf` toward the ray's
 /// origin): its path through the light subpath's vertex, MIS-weighted against the path
 /// tracer's two ways of making the same path. Returns the shadow ray (none where the two do
@@ -467,7 +460,7 @@ pub fn connect(lv: &LightVertex, pos: Vec3, spawn: Vec3, nf: Vec3, albedo: Vec3,
     if lv.valid & link.ok {
         let w2 = link.weight(lv.pa, lv.q1(), 1.0);
         let target = offset_ray_origin(lv.pos, lv.error, link.toward_eye(lv.n));
-        out = (shadow_to(spawn, target), beta * albedo * lv.albedo * lv.power * (link.geo * w2));
+        out = (ShadowRay::toward(spawn, target), beta * albedo * lv.albedo * lv.power * (link.geo * w2));
     }
     out
 }
@@ -530,7 +523,7 @@ pub fn connect_pooled(
     let (link, bw, (point, ny)) = pooled_candidate(records, slot, pos, nf, beta_albedo);
     let error = Vec3::splat(pool_field(records, slot, 12));
     let target = offset_ray_origin(point, error, if link.behind { ny } else { -ny });
-    (shadow_to(spawn, target), bw * link.term * (sum / (candidates as f32 * w[y])))
+    (ShadowRay::toward(spawn, target), bw * link.term * (sum / (candidates as f32 * w[y])))
 }
 
 /// The pool record at `records[slot]` (its first field; `pool_index`) as a candidate for the

@@ -618,8 +618,7 @@ fn light_sample_toward(
         // A light behind a transmitting surface is seen through it: the shadow ray leaves from
         // the far side.
         let from = if dot(at.nf, wi) < 0.0 { offset_ray_origin(at.pos, at.error, -at.nf) } else { at.spawn };
-        let (shadow_dir, shadow_t) = if d.infinite { (wi, f32::MAX) } else { (d.target - from, 1.0 - SHADOW_EPSILON) };
-        s.ray = ShadowRay::new(from, shadow_dir, shadow_t);
+        s.ray = if d.infinite { ShadowRay::new(from, wi, f32::MAX) } else { ShadowRay::toward(from, d.target) };
         let weight = if d.delta {
             1.0
         } else if three {

@@ -6,6 +6,7 @@
 //! the connection and the pooled connection), keeps the kernel smaller and its compile shorter
 //! (README, "Shader size").
 use crate::glam::Vec3;
+use crate::integrator::SHADOW_EPSILON;
 use crate::layout::RenderParams;
 use crate::raycast::query_recorded;
 use crate::record::{LightEvent, Recorder, LIGHT_UNBLOCKED, RAY_SHADOW};
@@ -28,6 +29,12 @@ impl ShadowRay {
     #[inline(always)]
     pub fn new(from: Vec3, dir: Vec3, t_max: f32) -> ShadowRay {
         ShadowRay { active: true, from, dir, t_max }
+    }
+
+    /// The ray from `from` to `target`, stopping `SHADOW_EPSILON` of the way short of it.
+    #[inline(always)]
+    pub fn toward(from: Vec3, target: Vec3) -> ShadowRay {
+        ShadowRay::new(from, target - from, 1.0 - SHADOW_EPSILON)
     }
 
     /// Whether the ray is cast and reaches its end unblocked, telling `rec` of it as a shadow ray.

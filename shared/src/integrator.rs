@@ -9,8 +9,9 @@
 //! done, and in a specialised build (a CPU monomorph, a GPU pipeline with specialisation
 //! constants) not compiled either.
 //!
-//! A vertex's shadow rays, next-event estimation's and the connection's, are prepared first and
-//! traced by one query (`shadow`), so that a shader holds one copy of the traversal for them.
+//! A vertex's shadow rays, next-event estimation's and the connection's, are prepared first
+//! (`shadow`) and traced by the path loop's one query, the one that finds the path's vertices, so
+//! that a shader holds one copy of the traversal.
 //!
 //! `trace_sample_recorded` runs a sample with a `record::Recorder` that hears of each event (rays,
 //! hits, emission, light and BSDF samples, roulette); the renderers (`render_samples`) pass
@@ -28,16 +29,16 @@ use crate::features::{
 use crate::glam::{Vec3, Vec4};
 use crate::kdtree::Hit;
 use crate::layout::{
-    RenderParams, AOV_ALBEDO, AOV_COST, AOV_NORMAL, LIGHT_ENVIRONMENT_BIT, LIGHT_NOT_TRIANGLE, LIGHT_OFFSET_MASK,
-    NO_ENVIRONMENT_MAP, NO_HIT, NO_LIGHT,
+    Material, RenderParams, AOV_ALBEDO, AOV_COST, AOV_NORMAL, LIGHT_ENVIRONMENT_BIT, LIGHT_NOT_TRIANGLE,
+    LIGHT_OFFSET_MASK, NO_ENVIRONMENT_MAP, NO_HIT, NO_LIGHT,
 };
 use crate::material::{absorption, albedo, emitted, eval, is_delta, picks_lobe, sample as sample_bsdf, transmits};
 use crate::numerics::{offset_ray_origin, sanitize};
 use crate::punctual;
-use crate::raycast::query_recorded;
+use crate::raycast::{query_recorded, Traced};
 use crate::record::{
     BsdfEvent, Gated, LightEvent, NoRecord, Recorder, SurfaceEvent, END_ABSORBED, END_AOV, END_BOUNCE_LIMIT,
-    END_ESCAPED, END_ROULETTE, LIGHT_BLOCKED, LIGHT_DELTA, LIGHT_INVALID, RAY_BOUNCE, RAY_CAMERA,
+    END_ESCAPED, END_ROULETTE, LIGHT_BLOCKED, LIGHT_DELTA, LIGHT_INVALID, RAY_BOUNCE, RAY_CAMERA, RAY_SHADOW,
 };
 use crate::rng::Sampler;
 use crate::sampling::{light_point, pick_light, power_heuristic, power_heuristic3};
@@ -102,10 +103,17 @@ pub fn trace_sample_recorded<R: Recorder>(
 /// `trace_sample_recorded` with the sample's sampler made by the caller (`render_samples` makes
 /// it from the pixel's seeds, computed once).
 ///
-/// The loop has a single exit (`alive`) and the vertex work lives in `shade_vertex`, which
-/// returns early but contains no loop: a `break` out of this loop from inside inlined
-/// traversal code was miscompiled for whole subgroups on lavapipe (Mesa 22.3, LLVM 15), which
-/// lost every lane's sample when one lane left the loop that way.
+/// Every ray of the path goes through the loop's one query, one ray an iteration (`STAGE_*`):
+/// the light subpath's first ray, where there is one, then per vertex the ray that finds it,
+/// next-event estimation's shadow ray and the connection's. A shader inlines the traversal once
+/// per query, so the kernel holds one copy of it; on a GPU the lanes of a subgroup then
+/// traverse together whatever ray each has (Aila & Laine 2009 on keeping traversal converged).
+///
+/// The loop has a single exit (`alive`) and the vertex work lives in `shade_vertex`,
+/// `connect_vertex` and `leave_vertex`, which return early but contain no loop: a `break` out
+/// of this loop from inside inlined traversal code was miscompiled for whole subgroups on
+/// lavapipe (Mesa 22.3, LLVM 15), which lost every lane's sample when one lane left the loop
+/// that way.
 #[inline(always)]
 fn trace_path<R: Recorder>(
     scene: &SceneView,
@@ -133,24 +141,52 @@ fn trace_path<R: Recorder>(
     // nested in another one its end would overlap the next member.
     let light = if path.bidir & (p.light_pool == 0) { light_ray(scene, v, &rng) } else { LightRay::NONE };
     let mut lv = LightVertex::NONE;
-    // The light subpath's ray, where there is one, goes first through the loop's one query (a
-    // shader inlines the traversal once per query); the recorder hears only the path's rays.
-    let mut light_first = light.ok;
+    // The vertex being shaded between its rays: its shading point, its material (`store`, see
+    // `vertex_material`), its light sample, and the shadow ray of a shadow stage with what the
+    // connection adds if that ray gets through.
+    let mut vx = Vertex::NONE;
+    let mut store = Material::default();
+    let mut nee = NO_LIGHT_SAMPLE;
+    let mut shadow = ShadowRay::NONE;
+    let mut linked = Vec3::ZERO;
+    let mut stage = if light.ok { STAGE_LIGHT } else { STAGE_PATH };
     let mut primary = NO_HIT;
     let mut alive = true;
     while alive {
-        let (origin, dir) = if light_first { (light.origin, light.dir) } else { (path.origin, path.dir) };
-        if !light_first {
-            rec.ray(if path.bounce == 0 { RAY_CAMERA } else { RAY_BOUNCE }, origin, dir, f32::MAX);
-        }
-        let gated = &mut Gated { rec: &mut *rec, on: !light_first };
-        let traced = query_recorded(scene, p.traversal, origin, dir, f32::MAX, false, gated);
-        let hit = traced.hit;
-        if light_first {
-            lv = light.vertex(scene, &hit);
-            light_first = false;
+        let path_ray = stage == STAGE_PATH;
+        let (origin, dir, t_max, cast) = if stage == STAGE_LIGHT {
+            (light.origin, light.dir, f32::MAX, true)
+        } else if path_ray {
+            (path.origin, path.dir, f32::MAX, true)
         } else {
+            (shadow.from, shadow.dir, shadow.t_max, shadow.active)
+        };
+        // The recorder hears of every ray but the light subpath's.
+        let heard = cast & (stage != STAGE_LIGHT);
+        if heard {
+            let kind = if !path_ray {
+                RAY_SHADOW
+            } else if path.bounce == 0 {
+                RAY_CAMERA
+            } else {
+                RAY_BOUNCE
+            };
+            rec.ray(kind, origin, dir, t_max);
+        }
+        let mut traced = Traced { hit: Hit::miss(t_max), restarts: 0 };
+        if cast {
+            let gated = &mut Gated { rec: &mut *rec, on: heard };
+            traced = query_recorded(scene, p.traversal, origin, dir, t_max, !path_ray & (stage != STAGE_LIGHT), gated);
+        }
+        let hit = traced.hit;
+        if heard {
             rec.traced(hit.triangle, hit.t, hit.nodes, hit.tests, traced.restarts);
+        }
+        let open = cast & !hit.is_hit();
+        if stage == STAGE_LIGHT {
+            lv = light.vertex(scene, &hit);
+            stage = STAGE_PATH;
+        } else if path_ray {
             if path.bounce == 0 {
                 primary = hit.triangle;
             }
@@ -160,8 +196,13 @@ fn trace_path<R: Recorder>(
                 rec.end(END_AOV, path.radiance);
                 alive = false;
             } else if hit.is_hit() {
+                vx.copied = load_material(scene, v, &hit, &mut store);
+                vx.material = scene.info[hit.triangle as usize].material;
+                let mat = vertex_material(scene, &store, &vx);
                 // The first hit's albedo or shading normal too (`shade_vertex`).
-                alive = shade_vertex(scene, p, v, &mut path, &mut rng, &hit, &lv, rec);
+                alive = shade_vertex(scene, p, v, &mut path, &mut rng, &hit, mat, &mut vx, &mut nee, rec);
+                shadow = nee.ray;
+                stage = STAGE_LIGHT_SAMPLE;
             } else if (path.bounce == 0) & first_hit_aov(p) {
                 // No first hit: the albedo or normal image is black there.
                 rec.end(END_AOV, path.radiance);
@@ -184,9 +225,117 @@ fn trace_path<R: Recorder>(
                 rec.end(END_ESCAPED, path.radiance);
                 alive = false;
             }
+        } else if stage == STAGE_LIGHT_SAMPLE {
+            if has_lights(scene, v) {
+                nee.finish(open, &mut path.radiance, rec);
+            }
+            let mat = vertex_material(scene, &store, &vx);
+            (shadow, linked) = connect_vertex(scene, p, v, &path, &mut rng, &lv, mat, &vx);
+            stage = STAGE_CONNECTION;
+        } else {
+            if open {
+                path.radiance += linked;
+            }
+            if path.bidir & (path.bounce < v.max_bounces) {
+                rec.connection(shadow.active, if open { linked } else { Vec3::ZERO });
+            }
+            let mat = vertex_material(scene, &store, &vx);
+            alive = leave_vertex(v, &mut path, &mut rng, mat, &vx, scene, rec);
+            stage = STAGE_PATH;
         }
     }
     PathSample { radiance: path.radiance, primary }
+}
+
+/// What the path loop's iteration traces (`trace_path`): the light subpath's first ray, the ray
+/// that finds the path's next vertex, next-event estimation's shadow ray, the connection's.
+const STAGE_LIGHT: u32 = 0;
+const STAGE_PATH: u32 = 1;
+const STAGE_LIGHT_SAMPLE: u32 = 2;
+const STAGE_CONNECTION: u32 = 3;
+
+/// What a vertex keeps between its rays (`trace_path`): the shading point (see `Shading`), the
+/// area density the connection's weight needs, the BSDF set's uniforms, and where its material
+/// is (`vertex_material`).
+#[derive(Clone, Copy)]
+struct Vertex {
+    pos: Vec3,
+    spawn: Vec3,
+    error: Vec3,
+    nf: Vec3,
+    ns: Vec3,
+    wo: Vec3,
+    front: bool,
+    inv_pi_a: f32,
+    ub1: f32,
+    ub2: f32,
+    u_roulette: f32,
+    /// The material's index, and whether the vertex reads a copy of it instead (`store`).
+    material: u32,
+    copied: bool,
+}
+
+impl Vertex {
+    const NONE: Vertex = Vertex {
+        pos: Vec3::ZERO,
+        spawn: Vec3::ZERO,
+        error: Vec3::ZERO,
+        nf: Vec3::Z,
+        ns: Vec3::Z,
+        wo: Vec3::Z,
+        front: true,
+        inv_pi_a: 0.0,
+        ub1: 0.0,
+        ub2: 0.0,
+        u_roulette: 0.0,
+        material: 0,
+        copied: false,
+    };
+}
+
+/// Puts the material at `hit` into `store` where the vertex needs a copy: with its textures
+/// looked up at the hit (`surface::resolve`), and on a GPU always. Returns whether it did.
+#[inline(always)]
+fn load_material(scene: &SceneView, v: Variant, hit: &Hit, store: &mut Material) -> bool {
+    #[cfg(target_arch = "spirv")]
+    {
+        *store = material_at(scene, v, hit);
+        true
+    }
+    #[cfg(not(target_arch = "spirv"))]
+    {
+        let base = &scene.materials[scene.info[hit.triangle as usize].material as usize];
+        let copied = looks_up_textures(scene, v, base);
+        if copied {
+            *store = resolve(scene, v, base, hit.triangle, hit_weights(hit));
+        }
+        copied
+    }
+}
+
+/// The material vertex `vx` shades with: on the CPU the scene's own entry where no texture is
+/// looked up (a copy of its 144 bytes at every vertex cost measurable time on diffuse scenes),
+/// else the copy in `store` (`load_material`). A shader always reads its copy: it cannot choose
+/// between a pointer into a storage buffer and one to a local variable.
+#[inline(always)]
+fn vertex_material<'a>(scene: &SceneView<'a>, store: &'a Material, vx: &Vertex) -> &'a Material {
+    #[cfg(target_arch = "spirv")]
+    {
+        let _ = (scene, vx);
+        store
+    }
+    #[cfg(not(target_arch = "spirv"))]
+    if vx.copied {
+        store
+    } else {
+        &scene.materials[vx.material as usize]
+    }
+}
+
+/// Whether next-event estimation has lights to sample.
+#[inline(always)]
+fn has_lights(scene: &SceneView, v: Variant) -> bool {
+    (v.has(FEATURE_EMITTERS) | v.has(FEATURE_ENVIRONMENT_MAP) | v.has(FEATURE_PUNCTUAL)) & (scene.light_count > 0)
 }
 
 /// Whether the render is the image of the first hits' albedo or shading normal (for denoisers
@@ -245,8 +394,13 @@ const DELTA_LIGHT_EVENT: LightEvent = LightEvent {
     contribution: Vec3::ZERO,
 };
 
-/// One path vertex: emission (MIS-weighted against light sampling), next-event estimation, then
-/// the BSDF sample that continues the path. Returns whether the path goes on.
+/// The light sample of a vertex that takes none (a delta material, a scene without lights).
+const NO_LIGHT_SAMPLE: LightSample = LightSample { event: DELTA_LIGHT_EVENT, ray: ShadowRay::NONE, added: Vec3::ZERO };
+
+/// A path vertex up to its shadow rays: emission (MIS-weighted against light sampling) and
+/// next-event estimation's light sample (`nee`, its shadow ray not yet traced); the shading
+/// point goes to `vx`. Returns whether the vertex goes on to its shadow rays
+/// (`connect_vertex`) and its BSDF sample (`leave_vertex`).
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn shade_vertex<R: Recorder>(
@@ -256,41 +410,24 @@ fn shade_vertex<R: Recorder>(
     path: &mut Path,
     rng: &mut Sampler,
     hit: &Hit,
-    lv: &LightVertex,
+    mat: &Material,
+    vx: &mut Vertex,
+    nee: &mut LightSample,
     rec: &mut R,
 ) -> bool {
     let dir = path.dir;
     // Without indirect light every vertex after the first adds exactly zero (nothing reflects,
     // or nothing emits): the path ends at its first hit, after that hit's emission.
     let last = !v.has(FEATURE_INDIRECT) | (path.bounce == v.max_bounces + 1);
-    let lights =
-        (v.has(FEATURE_EMITTERS) | v.has(FEATURE_ENVIRONMENT_MAP) | v.has(FEATURE_PUNCTUAL)) & (scene.light_count > 0);
+    let lights = has_lights(scene, v);
     // This vertex's sample sets, drawn first: each is a chain of dependent hashes and
     // multiplications (`sobol`), which a CPU overlaps with the shading below when they start
     // here, not where their values are needed. The order of the sets is unchanged: the light
     // set (when there are lights), then the BSDF set; the last vertex draws none.
     let (u_select, u_light) = if lights & !last { rng.next_2d() } else { (0.0, 0.0) };
-    let [ub1, ub2, u_roulette] = if last { [0.0; 3] } else { rng.next_3d() };
+    [vx.ub1, vx.ub2, vx.u_roulette] = if last { [0.0; 3] } else { rng.next_3d() };
     let tri = &scene.triangles[hit.triangle as usize];
     let info = scene.info[hit.triangle as usize];
-    // The material with its textures looked up at the hit (`surface::resolve`). On the CPU a
-    // material without textures is used where it is: a copy of its 144 bytes at every vertex
-    // cost measurable time on diffuse scenes. (A shader cannot choose between a pointer into a
-    // storage buffer and one to a local variable, so the GPU always copies.)
-    #[cfg(not(target_arch = "spirv"))]
-    let resolved;
-    #[cfg(not(target_arch = "spirv"))]
-    let mat = {
-        let base = &scene.materials[info.material as usize];
-        if looks_up_textures(scene, v, base) {
-            resolved = resolve(scene, v, base, hit.triangle, hit_weights(hit));
-            &resolved
-        } else {
-            base
-        }
-    };
-    #[cfg(target_arch = "spirv")]
-    let mat = &material_at(scene, v, hit);
     let ng = geometric_normal(tri);
     let n = stored_normal(tri);
     let surface = hit_point(tri, &TriangleHit { t: hit.t, u: hit.u, v: hit.v, w: hit.w });
@@ -359,9 +496,10 @@ fn shade_vertex<R: Recorder>(
     // connection strategy's MIS weight.
     let inv_pi_a = if path.bidir & (path.bounce > 0) { inv_pi_area(path.prev_cos, n, dir, hit.t) } else { 0.0 };
 
+    *vx = Vertex { pos, spawn, error: surface.error, nf, ns, wo, front, inv_pi_a, ..*vx };
     // Next-event estimation's light sample and the connection each cast a shadow ray: both are
-    // prepared, then traced by one query in a loop of two (`shadow`), light sample first.
-    let mut nee = LightSample { event: DELTA_LIGHT_EVENT, ray: ShadowRay::NONE, added: Vec3::ZERO };
+    // prepared and traced by the path loop's query (`shadow`), light sample first.
+    *nee = NO_LIGHT_SAMPLE;
     // A smooth mirror reflects no sampled light: its reflection of an emitter counts in full
     // when the BSDF ray hits it (`DELTA_PDF` takes the whole MIS weight).
     if lights & !is_delta(v, mat) {
@@ -384,45 +522,55 @@ fn shade_vertex<R: Recorder>(
         let three = path.bidir & !other;
         let q2 = if three { d.pa * dot(nf, d.wi).abs() * inv_pi_a * connection_weight(p) } else { 0.0 };
         let at = Shading { pos, spawn, error: surface.error, nf, ns, wo, front };
-        nee = light_sample_toward(scene, v, path.beta, mat, &d, index, light.triangle, &at, three, q2);
+        *nee = light_sample_toward(scene, v, path.beta, mat, &d, index, light.triangle, &at, three, q2);
     }
+    true
+}
 
-    let connects = path.bidir & (path.bounce < v.max_bounces);
-    let mut k = 0;
-    while k < 2 {
-        let mut ray = nee.ray;
-        let mut added = Vec3::ZERO;
-        if k == 1 {
-            ray = ShadowRay::NONE;
-            if connects {
-                let albedo = Vec3::new(mat.albedo.x, mat.albedo.y, mat.albedo.z);
-                (ray, added) = if p.light_pool != 0 {
-                    connect_pooled(scene, rng, path.bounce, pos, spawn, nf, albedo, path.beta)
-                } else {
-                    connect(lv, pos, spawn, nf, albedo, path.beta)
-                };
-            }
-        }
-        let open = ray.open(scene, p, rec);
-        if k == 0 {
-            if lights {
-                nee.finish(open, &mut path.radiance, rec);
-            }
+/// The connection of vertex `vx` (of material `mat`) to a light subpath: its shadow ray, not yet
+/// traced, and what it adds if the ray gets through; none past the bounce limit or without
+/// connections.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn connect_vertex(
+    scene: &SceneView,
+    p: &RenderParams,
+    v: Variant,
+    path: &Path,
+    rng: &mut Sampler,
+    lv: &LightVertex,
+    mat: &Material,
+    vx: &Vertex,
+) -> (ShadowRay, Vec3) {
+    let mut link = (ShadowRay::NONE, Vec3::ZERO);
+    if path.bidir & (path.bounce < v.max_bounces) {
+        let albedo = Vec3::new(mat.albedo.x, mat.albedo.y, mat.albedo.z);
+        link = if p.light_pool != 0 {
+            connect_pooled(scene, rng, path.bounce, vx.pos, vx.spawn, vx.nf, albedo, path.beta)
         } else {
-            if open {
-                path.radiance += added;
-            }
-            if connects {
-                rec.connection(ray.active, if open { added } else { Vec3::ZERO });
-            }
-        }
-        k += 1;
+            connect(lv, vx.pos, vx.spawn, vx.nf, albedo, path.beta)
+        };
     }
+    link
+}
 
+/// The BSDF sample that continues the path from vertex `vx` (of material `mat`), and Russian
+/// roulette. Returns whether the path goes on.
+#[inline(always)]
+fn leave_vertex<R: Recorder>(
+    v: Variant,
+    path: &mut Path,
+    rng: &mut Sampler,
+    mat: &Material,
+    vx: &Vertex,
+    scene: &SceneView,
+    rec: &mut R,
+) -> bool {
+    let (ns, nf, wo, front) = (vx.ns, vx.nf, vx.wo, vx.front);
     // The lobe pick's uniform, drawn only for a material that has a choice.
     let picks = picks_lobe(v, mat);
     let u_pick = if picks { rng.independent_after() } else { 0.0 };
-    let bs = sample_bsdf(v, mat, scene.textures, ns, wo, front, ub1, ub2, u_pick);
+    let bs = sample_bsdf(v, mat, scene.textures, ns, wo, front, vx.ub1, vx.ub2, u_pick);
     let mut event = BsdfEvent {
         wi: bs.wi,
         pdf: bs.pdf,
@@ -439,7 +587,7 @@ fn shade_vertex<R: Recorder>(
     }
     path.beta *= bs.weight;
     if path.bidir {
-        (path.prev_inv_pi_a, path.prev_cos) = (inv_pi_a, dot(nf, bs.wi).abs());
+        (path.prev_inv_pi_a, path.prev_cos) = (vx.inv_pi_a, dot(nf, bs.wi).abs());
     }
     event.valid = true;
     event.throughput = path.beta;
@@ -448,17 +596,17 @@ fn shade_vertex<R: Recorder>(
     path.bounce += 1;
     if path.bounce >= v.rr_start {
         let survive = max_component(path.beta).min(RR_MAX_SURVIVAL);
-        if u_roulette >= survive {
-            rec.roulette(survive, u_roulette, false, path.beta);
+        if vx.u_roulette >= survive {
+            rec.roulette(survive, vx.u_roulette, false, path.beta);
             rec.end(END_ROULETTE, path.radiance);
             return false;
         }
         path.beta /= survive;
-        rec.roulette(survive, u_roulette, true, path.beta);
+        rec.roulette(survive, vx.u_roulette, true, path.beta);
     }
     // A refracted ray leaves from the far side of the surface.
     path.origin =
-        if transmits(v, mat) & (dot(bs.wi, nf) < 0.0) { offset_ray_origin(pos, surface.error, -nf) } else { spawn };
+        if transmits(v, mat) & (dot(bs.wi, nf) < 0.0) { offset_ray_origin(vx.pos, vx.error, -nf) } else { vx.spawn };
     path.dir = bs.wi;
     true
 }

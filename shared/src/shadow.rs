@@ -1,10 +1,11 @@
 //! Shadow rays prepared first and traced at one place: next-event estimation and the connection
 //! to a light subpath each describe their shadow ray and what it adds if it gets through
-//! (`ShadowRay`, `LightSample`), and the integrator traces both through one query in a loop of
-//! two (`integrator::shade_vertex`). A shader inlines the whole traversal at every query, so one
-//! query for the two rays, where there were four (a triangle's light sample, another light's,
-//! the connection and the pooled connection), keeps the kernel smaller and its compile shorter
-//! (README, "Shader size").
+//! (`ShadowRay`, `LightSample`), and the integrator's path loop traces both through its one query,
+//! the one that also finds the path's vertices (`integrator::trace_path`). A shader inlines the
+//! whole traversal at every query, so one query for every ray, where there were six (the path's,
+//! a triangle's light sample, another light's, the connection, the pooled connection and the
+//! light subpath's first ray), keeps the kernel smaller and its compile shorter (README, "Shader
+//! size").
 use crate::glam::Vec3;
 use crate::integrator::SHADOW_EPSILON;
 use crate::layout::RenderParams;

@@ -77,19 +77,20 @@ pub fn sample(m: &Material, n: Vec3, wo: Vec3, u1: f32, u2: f32) -> BsdfSample {
     if o.z <= 0.0 {
         return BsdfSample::NONE;
     }
-    if alpha == 0.0 {
-        let i = Vec3::new(-o.x, -o.y, o.z);
-        return BsdfSample { wi: f.to_world(i), weight: fresnel(m, o.z), pdf: DELTA_PDF };
+    // A smooth mirror reflects `o` about the normal with its whole weight F(o_z); a rough one
+    // reflects about a visible normal h. One Fresnel evaluation for both (a shader inlines it
+    // per call).
+    let mut i = Vec3::new(-o.x, -o.y, o.z);
+    let (mut cos, mut g1, mut pdf) = (o.z, 1.0, DELTA_PDF);
+    if alpha != 0.0 {
+        let h = ggx_sample_visible(alpha, o, u1, u2);
+        i = h * (2.0 * dot(o, h)) - o;
+        if i.z <= 0.0 {
+            return BsdfSample::NONE;
+        }
+        // f·cos/pdf = F·D·G1(o)·G1(i)/(4 o_z) ÷ G1(o)·D/(4 o_z) = F·G1(i).
+        (cos, g1, pdf) = (dot(o, h), ggx_g1(alpha, i, h), ggx_visible_pdf(alpha, o, h));
     }
-    let h = ggx_sample_visible(alpha, o, u1, u2);
-    let i = h * (2.0 * dot(o, h)) - o;
-    if i.z <= 0.0 {
-        return BsdfSample::NONE;
-    }
-    // f·cos/pdf = F·D·G1(o)·G1(i)/(4 o_z) ÷ G1(o)·D/(4 o_z) = F·G1(i).
-    BsdfSample {
-        wi: f.to_world(i),
-        weight: fresnel(m, dot(o, h)) * ggx_g1(alpha, i, h),
-        pdf: ggx_visible_pdf(alpha, o, h),
-    }
+    // × 1 for the mirror: exact.
+    BsdfSample { wi: f.to_world(i), weight: fresnel(m, cos) * g1, pdf }
 }

@@ -112,8 +112,19 @@ pub fn sample(m: &Material, n: Vec3, wo: Vec3, front: bool, u1: f32, u2: f32, u3
     if o.z <= 0.0 {
         return BsdfSample::NONE;
     }
-    if alpha == 0.0 {
-        let (r, cos_t) = fresnel_dielectric(o.z, eta);
+    // The Fresnel term at the normal (smooth) or at a visible normal h (rough): one evaluation
+    // for both (a shader inlines it per call).
+    let smooth = alpha == 0.0;
+    let (mut h, mut oh) = (Vec3::Z, o.z);
+    if !smooth {
+        h = ggx_sample_visible(alpha, o, u1, u2);
+        oh = dot(o, h);
+        if oh <= 0.0 {
+            return BsdfSample::NONE;
+        }
+    }
+    let (r, cos_t) = fresnel_dielectric(oh, eta);
+    if smooth {
         if u1 < r {
             let i = Vec3::new(-o.x, -o.y, o.z);
             return BsdfSample { wi: f.to_world(i), weight: Vec3::ONE, pdf: DELTA_PDF };
@@ -121,12 +132,6 @@ pub fn sample(m: &Material, n: Vec3, wo: Vec3, front: bool, u1: f32, u2: f32, u3
         let i = Vec3::new(-o.x / eta, -o.y / eta, -cos_t);
         return BsdfSample { wi: f.to_world(i), weight: Vec3::splat(1.0 / (eta * eta)), pdf: DELTA_PDF };
     }
-    let h = ggx_sample_visible(alpha, o, u1, u2);
-    let oh = dot(o, h);
-    if oh <= 0.0 {
-        return BsdfSample::NONE;
-    }
-    let (r, cos_t) = fresnel_dielectric(oh, eta);
     if u3 < r {
         let i = h * (2.0 * oh) - o;
         if i.z <= 0.0 {

@@ -58,14 +58,8 @@ fn coat(m: &Material, front: bool) -> (f32, f32) {
 }
 
 /// The lobes' selection probabilities (specular, diffuse, transmission) for outgoing local
-/// direction `o`: each lobe's weight at o.
-#[inline]
-fn lobe_probabilities(m: &Material, o: Vec3, eta: f32) -> (f32, f32, f32) {
-    let (p, _) = lobes(m, o, eta);
-    p
-}
-
-/// `lobe_probabilities` and the sum of the lobes' weights (0 when the base reflects nothing).
+/// direction `o`, each lobe's weight at o, and the sum of the weights (0 when the base reflects
+/// nothing).
 #[inline]
 fn lobes(m: &Material, o: Vec3, eta: f32) -> ((f32, f32, f32), f32) {
     let base = xyz(m.albedo);
@@ -112,13 +106,8 @@ fn alpha(m: &Material) -> f32 {
     m.params.x.max(PRINCIPLED_MIN_ALPHA)
 }
 
-/// f (without the cosine) and the pdf of `sample` for local directions; `o.z > 0`.
-#[inline]
-fn eval_local(m: &Material, o: Vec3, i: Vec3, eta: f32) -> (Vec3, f32) {
-    eval_base(m, o, i, eta, lobe_probabilities(m, o, eta))
-}
-
-/// `eval_local` given the lobes' probabilities at `o` (`lobe_probabilities`).
+/// f (without the cosine) and the pdf of the base alone for local directions (`o.z > 0`),
+/// given the lobes' probabilities at `o` (`lobes`).
 #[inline]
 fn eval_base(m: &Material, o: Vec3, i: Vec3, eta: f32, probabilities: (f32, f32, f32)) -> (Vec3, f32) {
     let a = alpha(m);
@@ -143,10 +132,12 @@ fn eval_base(m: &Material, o: Vec3, i: Vec3, eta: f32, probabilities: (f32, f32,
     (base * (entering * transmission * value), p_through * pdf)
 }
 
-/// `eval_local` under the coat (`coat`, factor `c` > 0, α `ca`), given the base's `lobes` at `o`.
+/// f (without the cosine) and the pdf of `sample` for local directions (`o.z > 0`): the base,
+/// given its `lobes` at `o`, under the coat (`coat`) where its factor `c` is positive (α `ca`).
+/// One function for both, so that a shader inlines the base's evaluation once per call.
 #[inline]
 #[allow(clippy::too_many_arguments)]
-fn eval_coated(
+fn eval_local(
     m: &Material,
     o: Vec3,
     i: Vec3,
@@ -156,6 +147,9 @@ fn eval_coated(
     (probabilities, base_sum): ((f32, f32, f32), f32),
 ) -> (Vec3, f32) {
     let (base, base_pdf) = eval_base(m, o, i, eta, probabilities);
+    if !(c > 0.0) {
+        return (base, base_pdf);
+    }
     let (share, p_coat) = coat_split(c, o, base_sum);
     let (value, pdf) = (base * share, base_pdf * (1.0 - p_coat));
     if i.z <= 0.0 {
@@ -174,10 +168,7 @@ pub fn eval(m: &Material, n: Vec3, wo: Vec3, wi: Vec3, front: bool) -> (Vec3, f3
     }
     let eta = relative_eta(m.params.y, front);
     let (c, ca) = coat(m, front);
-    if c > 0.0 {
-        return eval_coated(m, o, i, eta, c, ca, lobes(m, o, eta));
-    }
-    eval_local(m, o, i, eta)
+    eval_local(m, o, i, eta, c, ca, lobes(m, o, eta))
 }
 
 /// Picks a lobe with `u3`, draws a direction from it
@@ -194,55 +185,50 @@ pub fn sample(m: &Material, n: Vec3, wo: Vec3, front: bool, u1: f32, u2: f32, u3
     let base_lobes = lobes(m, o, eta);
     let ((p_spec, p_diff, p_through), base_sum) = base_lobes;
     let (c, ca) = coat(m, front);
+    // The coat with its probability, else the base with u3 rescaled to [0, 1).
     let mut u3 = u3;
+    let mut in_coat = false;
     if c > 0.0 {
-        // The coat with its probability, else the base with u3 rescaled to [0, 1).
         let (_, p_coat) = coat_split(c, o, base_sum);
-        if u3 < p_coat {
-            let h = ggx_sample_visible(ca, o, u1, u2);
-            let i = h * (2.0 * dot(o, h)) - o;
+        in_coat = u3 < p_coat;
+        if !in_coat {
+            u3 = (u3 - p_coat) / (1.0 - p_coat);
+        }
+    }
+    if !in_coat & (p_spec + p_diff + p_through <= 0.0) {
+        return BsdfSample::NONE;
+    }
+    let specular = in_coat | (u3 < p_spec);
+    let diffuse = !specular & (u3 < p_spec + p_diff);
+    let i = if diffuse {
+        cosine_hemisphere(u1, u2)
+    } else {
+        // One microfacet sample for the coat, the specular lobe and transmission.
+        let h = ggx_sample_visible(if in_coat { ca } else { a }, o, u1, u2);
+        let oh = dot(o, h);
+        if specular {
+            let i = h * (2.0 * oh) - o;
+            // A reflection below the surface is no direction (`eval` would read it as refracted).
             if i.z <= 0.0 {
                 return BsdfSample::NONE;
             }
-            return weighed(f, eval_coated(m, o, i, eta, c, ca, base_lobes), i);
+            i
+        } else {
+            let (_, cos_t) = fresnel_dielectric(oh, eta);
+            if (oh <= 0.0) | (cos_t == 0.0) {
+                return BsdfSample::NONE;
+            }
+            let i = refract(o, h, oh, cos_t, eta);
+            if i.z >= 0.0 {
+                return BsdfSample::NONE;
+            }
+            i
         }
-        u3 = (u3 - p_coat) / (1.0 - p_coat);
-    }
-    if p_spec + p_diff + p_through <= 0.0 {
-        return BsdfSample::NONE;
-    }
-    let specular = u3 < p_spec;
-    let diffuse = !specular & (u3 < p_spec + p_diff);
-    let i = if specular {
-        let h = ggx_sample_visible(a, o, u1, u2);
-        let i = h * (2.0 * dot(o, h)) - o;
-        // A reflection below the surface is no direction (`eval` would read it as refracted).
-        if i.z <= 0.0 {
-            return BsdfSample::NONE;
-        }
-        i
-    } else if diffuse {
-        cosine_hemisphere(u1, u2)
-    } else {
-        let h = ggx_sample_visible(a, o, u1, u2);
-        let oh = dot(o, h);
-        let (_, cos_t) = fresnel_dielectric(oh, eta);
-        if (oh <= 0.0) | (cos_t == 0.0) {
-            return BsdfSample::NONE;
-        }
-        let i = refract(o, h, oh, cos_t, eta);
-        if i.z >= 0.0 {
-            return BsdfSample::NONE;
-        }
-        i
     };
     if i.z == 0.0 {
         return BsdfSample::NONE;
     }
-    if c > 0.0 {
-        return weighed(f, eval_coated(m, o, i, eta, c, ca, base_lobes), i);
-    }
-    weighed(f, eval_local(m, o, i, eta), i)
+    weighed(f, eval_local(m, o, i, eta, c, ca, base_lobes), i)
 }
 
 /// The sample of local direction `i` given the whole model's value and pdf there.

@@ -77,10 +77,22 @@ fn to_local(words: &[u32], o: u32, d: Vec3) -> Vec3 {
     Vec3::new(a.x * d.x + b.x * d.y + c.x * d.z, a.y * d.x + b.y * d.y + c.y * d.z, a.z * d.x + b.z * d.y + c.z * d.z)
 }
 
-/// The map's coordinates of a direction in its frame (need not be unit): column coordinate
-/// u·W, θ·`row_scale` (the header's (H − 1)/π or H/π), and sin θ.
+/// Where a world direction falls on the map (`locate`): its column coordinate u·W, its row
+/// coordinates θ·(H − 1)/π for a lookup (`radiance`) and θ·H/π for the density (`density`), and
+/// sin θ.
+#[derive(Clone, Copy)]
+pub struct MapPoint {
+    cu: f32,
+    fy: f32,
+    rv: f32,
+    sin_theta: f32,
+}
+
+/// Where world direction `dir` (need not be unit) falls on map `o`: one conversion (two
+/// arctangents) for its radiance and its density, which a shader would otherwise inline twice.
 #[inline]
-fn local_coordinates(words: &[u32], o: u32, d: Vec3, row_scale: f32) -> (f32, f32, f32) {
+pub fn locate(words: &[u32], o: u32, dir: Vec3) -> MapPoint {
+    let d = to_local(words, o, dir);
     let w = words[o as usize] as f32;
     let rho = (d.x * d.x + d.z * d.z).sqrt();
     // Not sqrt(rho² + y²): a driver may replace sqrt(a)·sqrt(a) by a.
@@ -92,9 +104,10 @@ fn local_coordinates(words: &[u32], o: u32, d: Vec3, row_scale: f32) -> (f32, f3
     if cu >= w {
         cu = 0.0;
     }
-    let rv = atan2(rho, d.y) * row_scale;
+    let theta = atan2(rho, d.y);
+    let (fy, rv) = (theta * f(words, o + 14), theta * f(words, o + 15));
     let sin_theta = if len > 0.0 { rho / len } else { 0.0 };
-    (cu, if rv > 0.0 { rv } else { 0.0 }, sin_theta)
+    MapPoint { cu, fy: if fy > 0.0 { fy } else { 0.0 }, rv: if rv > 0.0 { rv } else { 0.0 }, sin_theta }
 }
 
 /// a + (b − a)·t per channel, in scalars: a vector multiply-add here came out fused on lavapipe
@@ -147,26 +160,36 @@ pub fn eval_at(words: &[u32], o: u32, cu: f32, fy: f32) -> Vec3 {
 /// Radiance arriving from world direction `dir` (need not be unit).
 #[inline]
 pub fn eval(words: &[u32], o: u32, dir: Vec3) -> Vec3 {
-    let (cu, fy, _) = local_coordinates(words, o, to_local(words, o, dir), f(words, o + 14));
-    eval_at(words, o, cu, fy)
+    radiance(words, o, &locate(words, o, dir))
+}
+
+/// Radiance arriving from the direction that falls on `at`.
+#[inline]
+pub fn radiance(words: &[u32], o: u32, at: &MapPoint) -> Vec3 {
+    eval_at(words, o, at.cu, at.fy)
 }
 
 /// Solid-angle density of sampling world direction `dir` (`sample`), without the selection
 /// probability.
 #[inline]
 pub fn pdf(words: &[u32], o: u32, dir: Vec3) -> f32 {
-    let (cu, rv, sin_theta) = local_coordinates(words, o, to_local(words, o, dir), f(words, o + 15));
-    if sin_theta <= 0.0 {
+    density(words, o, &locate(words, o, dir))
+}
+
+/// `pdf` of the direction that falls on `at`.
+#[inline]
+pub fn density(words: &[u32], o: u32, at: &MapPoint) -> f32 {
+    if at.sin_theta <= 0.0 {
         return 0.0;
     }
     let w = words[o as usize];
     let h = words[o as usize + 1];
-    let cx = cu as u32;
-    let cy = rv as u32;
+    let cx = at.cu as u32;
+    let cy = at.rv as u32;
     let cx = if cx >= w { w - 1 } else { cx };
     let cy = if cy >= h { h - 1 } else { cy };
     let cells = o + HEADER_WORDS + (h + 1) + h * (w + 1);
-    f(words, cells + cy * w + cx) / sin_theta
+    f(words, cells + cy * w + cx) / at.sin_theta
 }
 
 /// Index i in [0, n) with cdf[i] ≤ u < cdf[i+1] (the CDF at words `c` .. `c + n + 1`), skipping

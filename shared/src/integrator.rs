@@ -107,7 +107,8 @@ pub fn trace_sample_recorded<R: Recorder>(
 /// the light subpath's first ray, where there is one, then per vertex the ray that finds it,
 /// next-event estimation's shadow ray and the connection's. A shader inlines the traversal once
 /// per query, so the kernel holds one copy of it; on a GPU the lanes of a subgroup then
-/// traverse together whatever ray each has (Aila & Laine 2009 on keeping traversal converged).
+/// traverse together whatever ray each has, as in a persistent-thread traversal (Aila & Laine,
+/// "Understanding the Efficiency of Ray Traversal on GPUs", HPG 2009).
 ///
 /// The loop has a single exit (`alive`) and the vertex work lives in `shade_vertex`,
 /// `connect_vertex` and `leave_vertex`, which return early but contain no loop: a `break` out
@@ -351,10 +352,11 @@ fn first_hit_aov(p: &RenderParams) -> bool {
 /// Also the lane integrator's, lane by lane.
 #[inline(always)]
 pub(crate) fn map_seen(scene: &SceneView, o: u32, dir: Vec3, bounce: u32, bsdf_pdf: f32) -> (Vec3, f32) {
-    let le = environment::eval(scene.textures, o, dir);
+    let at = environment::locate(scene.textures, o, dir);
+    let le = environment::radiance(scene.textures, o, &at);
     let mut weight = 1.0;
     if bounce > 0 {
-        let light_pdf = environment::selection_pmf(scene.textures, o) * environment::pdf(scene.textures, o, dir);
+        let light_pdf = environment::selection_pmf(scene.textures, o) * environment::density(scene.textures, o, &at);
         weight = power_heuristic(bsdf_pdf, light_pdf);
     }
     (le, weight)

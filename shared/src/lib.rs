@@ -28,6 +28,7 @@ pub mod kdtree;
 #[cfg(not(target_arch = "spirv"))]
 pub mod lanes;
 pub mod layout;
+pub mod light_sample;
 pub mod material;
 pub mod numerics;
 pub mod punctual;

@@ -26,14 +26,13 @@ use crate::features::{
     FEATURE_VERTEX_NORMALS,
 };
 use crate::glam::{Vec3, Vec4};
-use crate::integrator::{
-    map_seen, medium_transmittance, other_light_sample, PixelSpan, Shading, RR_MAX_SURVIVAL, SHADOW_EPSILON,
-};
+use crate::integrator::{has_lights, map_seen, medium_transmittance, PixelSpan, RR_MAX_SURVIVAL, SHADOW_EPSILON};
 use crate::kdtree::Hit;
 use crate::layout::{
     Material, RenderParams, AOV_RADIANCE, LIGHT_NOT_TRIANGLE, MATERIAL_DIFFUSE, NO_ENVIRONMENT_MAP, NO_HIT, NO_LIGHT,
     TRAVERSAL_WIDE_BVH,
 };
+use crate::light_sample::{other_light_sample, Shading};
 use crate::material::{eval, is_delta, picks_lobe, sample as sample_bsdf, transmits};
 use crate::numerics::sanitize;
 use crate::raycast::query;
@@ -51,7 +50,7 @@ use core::simd::Select;
 /// least one material kind. Texture lookups, alpha tests, shading normals, the BSDFs other than
 /// Lambertian, the environment map and punctual lights run lane by lane, through the scalar
 /// integrator's own functions (`surface`, `material`, `environment`,
-/// `integrator::other_light_sample`); the Lambertian BSDF and emitting triangles' light samples
+/// `light_sample::other_light_sample`); the Lambertian BSDF and emitting triangles' light samples
 /// run on all sixteen lanes at once.
 #[inline(always)]
 pub const fn covers(features: u32) -> bool {
@@ -343,8 +342,7 @@ fn trace_paths(
     // kinds other than Lambertian, the environment map's and punctual lights' samples.
     let kinds = !v.only_material(FEATURE_DIFFUSE) | v.has(FEATURE_ENVIRONMENT_MAP) | v.has(FEATURE_PUNCTUAL);
     let mut alive = live;
-    let lights =
-        (v.has(FEATURE_EMITTERS) | v.has(FEATURE_ENVIRONMENT_MAP) | v.has(FEATURE_PUNCTUAL)) & (scene.light_count > 0);
+    let lights = has_lights(scene, v);
     let many = v.has(FEATURE_MANY_EMITTERS);
     let bidir = crate::connection::connects(scene, p, v);
     let kappa = crate::connection::connection_weight(p);
@@ -633,7 +631,7 @@ impl<'a> Kinds<'a> {
 /// lane; on an emitting triangle a point on it, the shadow rays one by one (or by brute force),
 /// the unblocked lanes' MIS-weighted contributions added to `radiance`, each lane's BSDF value
 /// from `kinds` where its kind is not Lambertian; the environment map and punctual lights lane
-/// by lane (`integrator::other_light_sample`, given `kinds`).
+/// by lane (`light_sample::other_light_sample`, given `kinds`).
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn next_event(

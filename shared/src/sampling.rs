@@ -21,20 +21,29 @@ pub fn concentric_disk(u1: f32, u2: f32) -> (f32, f32) {
     if (a == 0.0) & (b == 0.0) {
         return (0.0, 0.0);
     }
-    if a.abs() > b.abs() {
-        let phi = core::f32::consts::FRAC_PI_4 * (b / a);
-        (a * cos_quarter(phi), a * sin_quarter(phi))
+    // Nearer the x axis: the angle φ = π/4 · b/a, the point a·(cos φ, sin φ). Nearer the y axis:
+    // θ = π/2 − φ' with φ' = π/4 · a/b, so cos θ = sin φ' and sin θ = cos φ'. The two cases pick
+    // their operands and one sine and one cosine serve both (a shader inlines each once).
+    let wide = a.abs() > b.abs();
+    let (r, num, den) = if wide { (a, b, a) } else { (b, a, b) };
+    let phi = core::f32::consts::FRAC_PI_4 * (num / den);
+    let (c, s) = (r * cos_quarter(phi), r * sin_quarter(phi));
+    if wide {
+        (c, s)
     } else {
-        // θ = π/2 − φ: cos θ = sin φ, sin θ = cos φ.
-        let phi = core::f32::consts::FRAC_PI_4 * (a / b);
-        (b * sin_quarter(phi), b * cos_quarter(phi))
+        (s, c)
     }
 }
 
 /// Cosine-weighted direction about +z (Malley's method); pdf = cos θ / π.
 #[inline]
 pub fn cosine_hemisphere(u1: f32, u2: f32) -> Vec3 {
-    let (x, y) = concentric_disk(u1, u2);
+    cosine_hemisphere_at(concentric_disk(u1, u2))
+}
+
+/// `cosine_hemisphere` from the point (x, y) of the unit disk that `concentric_disk` gave.
+#[inline]
+pub fn cosine_hemisphere_at((x, y): (f32, f32)) -> Vec3 {
     let z2 = 1.0 - x * x - y * y;
     Vec3::new(x, y, if z2 > 0.0 { z2.sqrt() } else { 0.0 })
 }

@@ -1,8 +1,8 @@
 //! Conductors: a smooth mirror or a rough GGX surface, with the exact Fresnel reflectance of a
 //! complex index of refraction η + iκ per channel, as Mitsuba 3's `conductor` and
 //! `roughconductor` (`distribution = "ggx"`, visible-normal sampling).
-use super::microfacet::{ggx_d, ggx_g1, ggx_sample_visible, ggx_visible_pdf};
-use super::{BsdfSample, Frame, DELTA_PDF};
+use super::microfacet::{ggx_d, ggx_g1, ggx_sample_visible_at, ggx_visible_pdf};
+use super::{BsdfSample, DELTA_PDF};
 use crate::glam::Vec3;
 use crate::layout::Material;
 use crate::vecmath::{dot, normalize, xyz};
@@ -56,10 +56,8 @@ fn fresnel(m: &Material, cos_i: f32) -> Vec3 {
 }
 
 #[inline]
-pub fn eval(m: &Material, n: Vec3, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+pub fn eval(m: &Material, o: Vec3, i: Vec3) -> (Vec3, f32) {
     let alpha = m.params.x;
-    let f = Frame::new(n);
-    let (o, i) = (f.to_local(wo), f.to_local(wi));
     if (alpha == 0.0) | (o.z <= 0.0) | (i.z <= 0.0) {
         return (Vec3::ZERO, 0.0);
     }
@@ -70,10 +68,8 @@ pub fn eval(m: &Material, n: Vec3, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
 }
 
 #[inline]
-pub fn sample(m: &Material, n: Vec3, wo: Vec3, u1: f32, u2: f32) -> BsdfSample {
+pub fn sample(m: &Material, o: Vec3, disk: (f32, f32)) -> BsdfSample {
     let alpha = m.params.x;
-    let f = Frame::new(n);
-    let o = f.to_local(wo);
     if o.z <= 0.0 {
         return BsdfSample::NONE;
     }
@@ -83,7 +79,7 @@ pub fn sample(m: &Material, n: Vec3, wo: Vec3, u1: f32, u2: f32) -> BsdfSample {
     let mut i = Vec3::new(-o.x, -o.y, o.z);
     let (mut cos, mut g1, mut pdf) = (o.z, 1.0, DELTA_PDF);
     if alpha != 0.0 {
-        let h = ggx_sample_visible(alpha, o, u1, u2);
+        let h = ggx_sample_visible_at(alpha, o, disk);
         i = h * (2.0 * dot(o, h)) - o;
         if i.z <= 0.0 {
             return BsdfSample::NONE;
@@ -92,5 +88,5 @@ pub fn sample(m: &Material, n: Vec3, wo: Vec3, u1: f32, u2: f32) -> BsdfSample {
         (cos, g1, pdf) = (dot(o, h), ggx_g1(alpha, i, h), ggx_visible_pdf(alpha, o, h));
     }
     // × 1 for the mirror: exact.
-    BsdfSample { wi: f.to_world(i), weight: fresnel(m, cos) * g1, pdf }
+    BsdfSample { wi: i, weight: fresnel(m, cos) * g1, pdf }
 }

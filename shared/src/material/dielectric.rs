@@ -4,8 +4,8 @@
 //! `ext_ior = 1`: the counter-clockwise (front) side is outside. A rough interface is Walter et
 //! al. 2007 ("Microfacet Models for Refraction through Rough Surfaces", EGSR), sampled by the
 //! normals visible from the outgoing direction (Heitz 2018).
-use super::microfacet::{ggx_d, ggx_g1, ggx_g1_two_sided, ggx_sample_visible, ggx_visible_pdf};
-use super::{BsdfSample, Frame, DELTA_PDF};
+use super::microfacet::{ggx_d, ggx_g1, ggx_g1_two_sided, ggx_sample_visible_at, ggx_visible_pdf};
+use super::{BsdfSample, DELTA_PDF};
 use crate::glam::Vec3;
 use crate::layout::Material;
 use crate::vecmath::{dot, normalize};
@@ -75,11 +75,9 @@ pub fn rough_transmission(alpha: f32, o: Vec3, i: Vec3, eta: f32) -> (f32, f32) 
 
 /// BSDF value and pdf of a rough interface (a smooth one has none to evaluate).
 #[inline]
-pub fn eval(m: &Material, n: Vec3, wo: Vec3, wi: Vec3, front: bool) -> (Vec3, f32) {
+pub fn eval(m: &Material, o: Vec3, i: Vec3, front: bool) -> (Vec3, f32) {
     let alpha = m.params.x;
     let eta = relative_eta(m.params.y, front);
-    let f = Frame::new(n);
-    let (o, i) = (f.to_local(wo), f.to_local(wi));
     if (alpha == 0.0) | (o.z <= 0.0) | (i.z == 0.0) {
         return (Vec3::ZERO, 0.0);
     }
@@ -101,14 +99,13 @@ pub fn eval(m: &Material, n: Vec3, wo: Vec3, wi: Vec3, front: bool) -> (Vec3, f3
 
 /// Reflects with probability F, refracts otherwise; `u3` picks. A smooth interface picks with
 /// `u1` (its direction
-/// needs no random numbers). `front`: the ray arrived from outside (the counter-clockwise side),
+/// needs no random numbers); a rough one draws its visible normal from the disk point `disk`.
+/// Directions are local to the shading frame (`material::sample`). `front`: the ray arrived from outside (the counter-clockwise side),
 /// so it enters the medium of index `params.y`.
 #[inline]
-pub fn sample(m: &Material, n: Vec3, wo: Vec3, front: bool, u1: f32, u2: f32, u3: f32) -> BsdfSample {
+pub fn sample(m: &Material, o: Vec3, front: bool, u1: f32, disk: (f32, f32), u3: f32) -> BsdfSample {
     let alpha = m.params.x;
     let eta = relative_eta(m.params.y, front);
-    let f = Frame::new(n);
-    let o = f.to_local(wo);
     if o.z <= 0.0 {
         return BsdfSample::NONE;
     }
@@ -117,7 +114,7 @@ pub fn sample(m: &Material, n: Vec3, wo: Vec3, front: bool, u1: f32, u2: f32, u3
     let smooth = alpha == 0.0;
     let (mut h, mut oh) = (Vec3::Z, o.z);
     if !smooth {
-        h = ggx_sample_visible(alpha, o, u1, u2);
+        h = ggx_sample_visible_at(alpha, o, disk);
         oh = dot(o, h);
         if oh <= 0.0 {
             return BsdfSample::NONE;
@@ -127,10 +124,10 @@ pub fn sample(m: &Material, n: Vec3, wo: Vec3, front: bool, u1: f32, u2: f32, u3
     if smooth {
         if u1 < r {
             let i = Vec3::new(-o.x, -o.y, o.z);
-            return BsdfSample { wi: f.to_world(i), weight: Vec3::ONE, pdf: DELTA_PDF };
+            return BsdfSample { wi: i, weight: Vec3::ONE, pdf: DELTA_PDF };
         }
         let i = Vec3::new(-o.x / eta, -o.y / eta, -cos_t);
-        return BsdfSample { wi: f.to_world(i), weight: Vec3::splat(1.0 / (eta * eta)), pdf: DELTA_PDF };
+        return BsdfSample { wi: i, weight: Vec3::splat(1.0 / (eta * eta)), pdf: DELTA_PDF };
     }
     if u3 < r {
         let i = h * (2.0 * oh) - o;
@@ -138,11 +135,7 @@ pub fn sample(m: &Material, n: Vec3, wo: Vec3, front: bool, u1: f32, u2: f32, u3
             return BsdfSample::NONE;
         }
         // f·cos/pdf = F·D·G1(o)G1(i)/(4 o_z) ÷ F·G1(o)·D/(4 o_z) = G1(i).
-        return BsdfSample {
-            wi: f.to_world(i),
-            weight: Vec3::splat(ggx_g1(alpha, i, h)),
-            pdf: r * ggx_visible_pdf(alpha, o, h),
-        };
+        return BsdfSample { wi: i, weight: Vec3::splat(ggx_g1(alpha, i, h)), pdf: r * ggx_visible_pdf(alpha, o, h) };
     }
     let i = refract(o, h, oh, cos_t, eta);
     if i.z >= 0.0 {
@@ -154,5 +147,5 @@ pub fn sample(m: &Material, n: Vec3, wo: Vec3, front: bool, u1: f32, u2: f32, u3
     }
     // (1 − F) cancels between the value and the pick; what is left is G1(i)/η² up to the
     // rounding of the half vector recomputed from i.
-    BsdfSample { wi: f.to_world(i), weight: Vec3::splat(value * (-i.z) / pdf), pdf: (1.0 - r) * pdf }
+    BsdfSample { wi: i, weight: Vec3::splat(value * (-i.z) / pdf), pdf: (1.0 - r) * pdf }
 }

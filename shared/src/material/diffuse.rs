@@ -2,12 +2,12 @@
 use super::BsdfSample;
 use crate::glam::Vec3;
 use crate::layout::Material;
-use crate::sampling::{cosine_hemisphere, orthonormal_basis, INV_PI};
-use crate::vecmath::{dot, xyz};
+use crate::sampling::{cosine_hemisphere_at, INV_PI};
+use crate::vecmath::xyz;
 
 #[inline]
-pub fn eval(m: &Material, n: Vec3, wi: Vec3) -> (Vec3, f32) {
-    let c = dot(n, wi);
+pub fn eval(m: &Material, i: Vec3) -> (Vec3, f32) {
+    let c = i.z;
     if c <= 0.0 {
         return (Vec3::ZERO, 0.0);
     }
@@ -17,9 +17,7 @@ pub fn eval(m: &Material, n: Vec3, wi: Vec3) -> (Vec3, f32) {
 /// wi ∝ the cosine lobe; f·cos/pdf = (ρ/π)·cos / (cos/π) = ρ. Always inlined: the integrator's
 /// AVX-512 copies (host `render::cpu`) compile only what is inlined into them for AVX-512.
 #[inline(always)]
-pub fn sample(m: &Material, n: Vec3, u1: f32, u2: f32) -> BsdfSample {
-    let local = cosine_hemisphere(u1, u2);
-    let (t, b) = orthonormal_basis(n);
-    let wi = t * local.x + b * local.y + n * local.z;
-    BsdfSample { wi, weight: xyz(m.albedo), pdf: local.z * INV_PI }
+pub fn sample(m: &Material, disk: (f32, f32)) -> BsdfSample {
+    let i = cosine_hemisphere_at(disk);
+    BsdfSample { wi: i, weight: xyz(m.albedo), pdf: i.z * INV_PI }
 }

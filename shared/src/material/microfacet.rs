@@ -55,12 +55,18 @@ pub fn ggx_g1_two_sided(alpha: f32, w: Vec3, m: Vec3) -> f32 {
 /// polynomials (`trig`).
 #[inline]
 pub fn ggx_sample_visible(alpha: f32, w: Vec3, u1: f32, u2: f32) -> Vec3 {
+    ggx_sample_visible_at(alpha, w, concentric_disk(u1, u2))
+}
+
+/// `ggx_sample_visible` from the point (p1, p2) of the unit disk that `concentric_disk` gave:
+/// `material::sample` maps its uniforms onto the disk once for whichever material it samples.
+#[inline]
+pub fn ggx_sample_visible_at(alpha: f32, w: Vec3, (p1, p2): (f32, f32)) -> Vec3 {
     // The view direction in the hemisphere configuration (α stretched to 1).
     let v = normalize(Vec3::new(alpha * w.x, alpha * w.y, w.z));
     let len2 = v.x * v.x + v.y * v.y;
     let t1 = if len2 > 0.0 { Vec3::new(-v.y, v.x, 0.0) * (1.0 / len2.sqrt()) } else { Vec3::X };
     let t2 = cross(v, t1);
-    let (p1, p2) = concentric_disk(u1, u2);
     // Warp the disk onto the visible half of the projected hemisphere, with s and 1 − s written
     // out: the SPIR-V optimiser folds 1 − 0.5·(1 + z) into 0.5 − 0.5·z, which rounds differently.
     let (s, one_minus_s) = (0.5 + 0.5 * v.z, 0.5 - 0.5 * v.z);

@@ -8,6 +8,11 @@
 //! weight. A smooth (delta) lobe has no value to evaluate: `eval` gives zero, and `sample`
 //! reports pdf `DELTA_PDF`, which takes the whole MIS weight (`sampling::power_heuristic`).
 //!
+//! The kinds' own `eval` and `sample` see these directions in the shading frame around `n` (`o`
+//! for `wo`, `i` for `wi`, z along `n`): `eval` and `sample` here build the frame once, and
+//! `sample` maps its two uniforms onto the unit disk once (`sampling::concentric_disk`), for
+//! whichever kind the material is. A shader inlines each of them once, not once per kind.
+//!
 //! When the variant has one material kind only (`features::Variant::only_material`) the kind is
 //! not tested.
 mod conductor;
@@ -35,6 +40,7 @@ use crate::glam::Vec3;
 use crate::layout::{
     Material, MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, MATERIAL_DIFFUSE, MATERIAL_PLASTIC, MATERIAL_PRINCIPLED,
 };
+use crate::sampling::concentric_disk;
 use crate::vecmath::{dot, xyz};
 
 /// The pdf a delta lobe reports: the largest f32, whose square overflows, so that it takes the
@@ -71,20 +77,23 @@ fn is(v: Variant, m: &Material, kind: u32, bit: u32) -> bool {
 #[cfg_attr(target_arch = "spirv", inline)]
 #[allow(clippy::too_many_arguments)]
 pub fn eval(v: Variant, m: &Material, words: &[u32], n: Vec3, wo: Vec3, wi: Vec3, front: bool) -> (Vec3, f32) {
+    // The kinds work in the shading frame; it is built once here, not once per kind in a shader.
+    let f = Frame::new(n);
+    let (o, i) = (f.to_local(wo), f.to_local(wi));
     if is(v, m, MATERIAL_DIFFUSE, FEATURE_DIFFUSE) {
-        return diffuse::eval(m, n, wi);
+        return diffuse::eval(m, i);
     }
     if is(v, m, MATERIAL_CONDUCTOR, FEATURE_CONDUCTOR) {
-        return conductor::eval(m, n, wo, wi);
+        return conductor::eval(m, o, i);
     }
     if is(v, m, MATERIAL_DIELECTRIC, FEATURE_DIELECTRIC) {
-        return dielectric::eval(m, n, wo, wi, front);
+        return dielectric::eval(m, o, i, front);
     }
     if is(v, m, MATERIAL_PLASTIC, FEATURE_PLASTIC) {
-        return plastic::eval(m, words, n, wo, wi);
+        return plastic::eval(m, words, o, i);
     }
     if is(v, m, MATERIAL_PRINCIPLED, FEATURE_PRINCIPLED) {
-        return principled::eval(m, n, wo, wi, front);
+        return principled::eval(m, o, i, front);
     }
     (Vec3::ZERO, 0.0)
 }
@@ -107,22 +116,29 @@ pub fn sample(
     u2: f32,
     u3: f32,
 ) -> BsdfSample {
-    if is(v, m, MATERIAL_DIFFUSE, FEATURE_DIFFUSE) {
-        return diffuse::sample(m, n, u1, u2);
-    }
-    if is(v, m, MATERIAL_CONDUCTOR, FEATURE_CONDUCTOR) {
-        return conductor::sample(m, n, wo, u1, u2);
-    }
-    if is(v, m, MATERIAL_DIELECTRIC, FEATURE_DIELECTRIC) {
-        return dielectric::sample(m, n, wo, front, u1, u2, u3);
-    }
-    if is(v, m, MATERIAL_PLASTIC, FEATURE_PLASTIC) {
-        return plastic::sample(m, words, n, wo, u1, u2, u3);
-    }
-    if is(v, m, MATERIAL_PRINCIPLED, FEATURE_PRINCIPLED) {
-        return principled::sample(m, n, wo, front, u1, u2, u3);
-    }
-    BsdfSample::NONE
+    // Every kind draws its direction (a cosine-weighted one or a visible microfacet normal) from
+    // the same point of the unit disk: mapped once here, a shader inlines the map once, not once
+    // per kind and lobe.
+    let disk = concentric_disk(u1, u2);
+    // Likewise one shading frame: the kinds sample a local direction, turned to the world once.
+    let f = Frame::new(n);
+    let o = f.to_local(wo);
+    let s = if is(v, m, MATERIAL_DIFFUSE, FEATURE_DIFFUSE) {
+        diffuse::sample(m, disk)
+    } else if is(v, m, MATERIAL_CONDUCTOR, FEATURE_CONDUCTOR) {
+        conductor::sample(m, o, disk)
+    } else if is(v, m, MATERIAL_DIELECTRIC, FEATURE_DIELECTRIC) {
+        dielectric::sample(m, o, front, u1, disk, u3)
+    } else if is(v, m, MATERIAL_PLASTIC, FEATURE_PLASTIC) {
+        plastic::sample(m, words, o, disk, u3)
+    } else if is(v, m, MATERIAL_PRINCIPLED, FEATURE_PRINCIPLED) {
+        principled::sample(m, o, front, disk, u3)
+    } else {
+        BsdfSample::NONE
+    };
+    // A sampled direction is a unit vector; `NONE` keeps its zero direction exactly.
+    let none = (s.wi.x == 0.0) & (s.wi.y == 0.0) & (s.wi.z == 0.0);
+    BsdfSample { wi: if none { Vec3::ZERO } else { f.to_world(s.wi) }, ..s }
 }
 
 /// Whether every lobe of `m` is a delta (a smooth mirror): light sampling cannot hit it.

@@ -14,11 +14,11 @@
 //! reflectance in place of F_dr: f = ρ/(1 − R_int) · t(cos θ_o) t(cos θ_i) / (π η²); the lobes
 //! are picked with the weight 1 − t(cos θ_o) in place of F.
 use super::dielectric::fresnel_dielectric;
-use super::microfacet::{ggx_d, ggx_g1, ggx_sample_visible};
-use super::{BsdfSample, Frame, DELTA_PDF};
+use super::microfacet::{ggx_d, ggx_g1, ggx_sample_visible_at};
+use super::{BsdfSample, DELTA_PDF};
 use crate::glam::Vec3;
 use crate::layout::Material;
-use crate::sampling::{cosine_hemisphere, INV_PI};
+use crate::sampling::{cosine_hemisphere_at, INV_PI};
 use crate::vecmath::{dot, normalize, xyz};
 
 /// Points of the rough coating's transmittance table over μ = cos θ in [0, 1] (Mitsuba's
@@ -120,15 +120,15 @@ fn eval_rough(m: &Material, words: &[u32], o: Vec3, i: Vec3) -> (Vec3, f32) {
 /// The rough coating's sample: a GGX visible normal's mirror direction or the base's cosine
 /// lobe, picked with `u3`; the weight is f·cos/pdf of the mixture.
 #[inline]
-fn sample_rough(m: &Material, words: &[u32], f: &Frame, o: Vec3, u1: f32, u2: f32, u3: f32) -> BsdfSample {
+fn sample_rough(m: &Material, words: &[u32], o: Vec3, disk: (f32, f32), u3: f32) -> BsdfSample {
     let alpha = m.params.x;
     let t_o = rough_plastic_transmittance(words, m.table, o.z);
     let (p_specular, _) = rough_lobes(m, t_o);
     let i = if u3 < p_specular {
-        let h = ggx_sample_visible(alpha, o, u1, u2);
+        let h = ggx_sample_visible_at(alpha, o, disk);
         h * (2.0 * dot(o, h)) - o
     } else {
-        cosine_hemisphere(u1, u2)
+        cosine_hemisphere_at(disk)
     };
     if i.z <= 0.0 {
         return BsdfSample::NONE;
@@ -137,15 +137,13 @@ fn sample_rough(m: &Material, words: &[u32], f: &Frame, o: Vec3, u1: f32, u2: f3
     if pdf <= 0.0 {
         return BsdfSample::NONE;
     }
-    BsdfSample { wi: f.to_world(i), weight: value * (i.z / pdf), pdf }
+    BsdfSample { wi: i, weight: value * (i.z / pdf), pdf }
 }
 
 /// `words`: the texture buffer, which holds a rough coating's table.
 #[inline]
-pub fn eval(m: &Material, words: &[u32], n: Vec3, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+pub fn eval(m: &Material, words: &[u32], o: Vec3, i: Vec3) -> (Vec3, f32) {
     let eta = m.params.y;
-    let f = Frame::new(n);
-    let (o, i) = (f.to_local(wo), f.to_local(wi));
     if (o.z <= 0.0) | (i.z <= 0.0) {
         return (Vec3::ZERO, 0.0);
     }
@@ -163,15 +161,13 @@ pub fn eval(m: &Material, words: &[u32], n: Vec3, wo: Vec3, wi: Vec3) -> (Vec3, 
 /// picked with `u3`.
 #[inline]
 #[allow(clippy::too_many_arguments)]
-pub fn sample(m: &Material, words: &[u32], n: Vec3, wo: Vec3, u1: f32, u2: f32, u3: f32) -> BsdfSample {
+pub fn sample(m: &Material, words: &[u32], o: Vec3, disk: (f32, f32), u3: f32) -> BsdfSample {
     let eta = m.params.y;
-    let f = Frame::new(n);
-    let o = f.to_local(wo);
     if o.z <= 0.0 {
         return BsdfSample::NONE;
     }
     if m.params.x > 0.0 {
-        return sample_rough(m, words, &f, o, u1, u2, u3);
+        return sample_rough(m, words, o, disk, u3);
     }
     let f_o = fresnel_dielectric(o.z, eta).0;
     let w = coating_share(m);
@@ -179,9 +175,9 @@ pub fn sample(m: &Material, words: &[u32], n: Vec3, wo: Vec3, u1: f32, u2: f32, 
     if u3 < f_o * w / sum {
         // F / p_specular = sum / w.
         let i = Vec3::new(-o.x, -o.y, o.z);
-        return BsdfSample { wi: f.to_world(i), weight: Vec3::splat(sum / w), pdf: DELTA_PDF };
+        return BsdfSample { wi: i, weight: Vec3::splat(sum / w), pdf: DELTA_PDF };
     }
-    let i = cosine_hemisphere(u1, u2);
+    let i = cosine_hemisphere_at(disk);
     let p_diffuse = (1.0 - f_o) * (1.0 - w) / sum;
     let pdf = p_diffuse * (i.z * INV_PI);
     if pdf <= 0.0 {
@@ -190,5 +186,5 @@ pub fn sample(m: &Material, words: &[u32], n: Vec3, wo: Vec3, u1: f32, u2: f32, 
     // f·cos/pdf = (f·π) / p_diffuse = ρ·(1 − F_i)·scale·sum / (1 − w).
     let f_i = fresnel_dielectric(i.z, eta).0;
     let weight = xyz(m.albedo) * ((1.0 - f_i) * m.params.w * (sum / (1.0 - w)));
-    BsdfSample { wi: f.to_world(i), weight, pdf }
+    BsdfSample { wi: i, weight, pdf }
 }

@@ -24,11 +24,11 @@
 //! integrator to the distance a ray travels inside); `eta.x` the clear coat's factor and
 //! `eta.y` its α (0: no coat); `eta.w` a normal map's scale.
 use super::dielectric::{fresnel_dielectric, refract, relative_eta, rough_transmission};
-use super::microfacet::{ggx_d, ggx_g1, ggx_sample_visible, ggx_visible_pdf};
-use super::{BsdfSample, Frame};
+use super::microfacet::{ggx_d, ggx_g1, ggx_sample_visible_at, ggx_visible_pdf};
+use super::BsdfSample;
 use crate::glam::Vec3;
 use crate::layout::Material;
-use crate::sampling::{cosine_hemisphere, INV_PI};
+use crate::sampling::{cosine_hemisphere_at, INV_PI};
 use crate::vecmath::{dot, luminance, normalize, xyz};
 #[allow(unused_imports)]
 use spirv_std::num_traits::Float;
@@ -160,9 +160,7 @@ fn eval_local(
 }
 
 #[inline]
-pub fn eval(m: &Material, n: Vec3, wo: Vec3, wi: Vec3, front: bool) -> (Vec3, f32) {
-    let f = Frame::new(n);
-    let (o, i) = (f.to_local(wo), f.to_local(wi));
+pub fn eval(m: &Material, o: Vec3, i: Vec3, front: bool) -> (Vec3, f32) {
     if o.z <= 0.0 {
         return (Vec3::ZERO, 0.0);
     }
@@ -171,13 +169,11 @@ pub fn eval(m: &Material, n: Vec3, wo: Vec3, wi: Vec3, front: bool) -> (Vec3, f3
     eval_local(m, o, i, eta, c, ca, lobes(m, o, eta))
 }
 
-/// Picks a lobe with `u3`, draws a direction from it
-/// with `u1`, `u2`, and weighs it by the whole model: f·|cos| / (the mixture's pdf).
+/// Picks a lobe with `u3`, draws a direction from it from the disk point `disk`, and weighs it
+/// by the whole model: f·|cos| / (the mixture's pdf). Directions are local (`material::sample`).
 #[inline]
-pub fn sample(m: &Material, n: Vec3, wo: Vec3, front: bool, u1: f32, u2: f32, u3: f32) -> BsdfSample {
+pub fn sample(m: &Material, o: Vec3, front: bool, disk: (f32, f32), u3: f32) -> BsdfSample {
     let eta = relative_eta(m.params.y, front);
-    let f = Frame::new(n);
-    let o = f.to_local(wo);
     if o.z <= 0.0 {
         return BsdfSample::NONE;
     }
@@ -201,10 +197,10 @@ pub fn sample(m: &Material, n: Vec3, wo: Vec3, front: bool, u1: f32, u2: f32, u3
     let specular = in_coat | (u3 < p_spec);
     let diffuse = !specular & (u3 < p_spec + p_diff);
     let i = if diffuse {
-        cosine_hemisphere(u1, u2)
+        cosine_hemisphere_at(disk)
     } else {
         // One microfacet sample for the coat, the specular lobe and transmission.
-        let h = ggx_sample_visible(if in_coat { ca } else { a }, o, u1, u2);
+        let h = ggx_sample_visible_at(if in_coat { ca } else { a }, o, disk);
         let oh = dot(o, h);
         if specular {
             let i = h * (2.0 * oh) - o;
@@ -228,14 +224,14 @@ pub fn sample(m: &Material, n: Vec3, wo: Vec3, front: bool, u1: f32, u2: f32, u3
     if i.z == 0.0 {
         return BsdfSample::NONE;
     }
-    weighed(f, eval_local(m, o, i, eta, c, ca, base_lobes), i)
+    weighed(eval_local(m, o, i, eta, c, ca, base_lobes), i)
 }
 
 /// The sample of local direction `i` given the whole model's value and pdf there.
 #[inline]
-fn weighed(f: Frame, (value, pdf): (Vec3, f32), i: Vec3) -> BsdfSample {
+fn weighed((value, pdf): (Vec3, f32), i: Vec3) -> BsdfSample {
     if pdf <= 0.0 {
         return BsdfSample::NONE;
     }
-    BsdfSample { wi: f.to_world(i), weight: value * (i.z.abs() / pdf), pdf }
+    BsdfSample { wi: i, weight: value * (i.z.abs() / pdf), pdf }
 }

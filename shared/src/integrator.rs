@@ -31,10 +31,8 @@ use crate::kdtree::Hit;
 use crate::layout::{
     Material, RenderParams, AOV_ALBEDO, AOV_COST, AOV_NORMAL, LIGHT_NOT_TRIANGLE, NO_ENVIRONMENT_MAP, NO_HIT, NO_LIGHT,
 };
-use crate::light_sample::{
-    light_sample_toward, other_light_direction, triangle_light_direction, LightDirection, Shading,
-};
-use crate::material::{absorption, albedo, emitted, eval_and_sample, is_delta, picks_lobe, transmits, BsdfSample};
+use crate::light_sample::{light_sample_toward, other_light_direction, triangle_light_direction, Shading};
+use crate::material::{absorption, albedo, emitted, is_delta, picks_lobe, sample as sample_bsdf, transmits};
 use crate::numerics::{offset_ray_origin, sanitize};
 use crate::raycast::{query_recorded, Traced};
 use crate::record::{
@@ -242,7 +240,7 @@ fn trace_path<R: Recorder>(
                 rec.connection(shadow.active, if open { linked } else { Vec3::ZERO });
             }
             let mat = vertex_material(scene, &store, &vx);
-            alive = leave_vertex(v, &mut path, mat, &vx, rec);
+            alive = leave_vertex(v, &mut path, &mut rng, mat, &vx, scene, rec);
             stage = STAGE_PATH;
         }
     }
@@ -257,8 +255,8 @@ const STAGE_LIGHT_SAMPLE: u32 = 2;
 const STAGE_CONNECTION: u32 = 3;
 
 /// What a vertex keeps between its rays (`trace_path`): the shading point (see `Shading`), the
-/// area density the connection's weight needs, the BSDF's sample and the roulette's uniform,
-/// and where its material is (`vertex_material`).
+/// area density the connection's weight needs, the BSDF set's uniforms, and where its material
+/// is (`vertex_material`).
 #[derive(Clone, Copy)]
 struct Vertex {
     pos: Vec3,
@@ -266,15 +264,12 @@ struct Vertex {
     error: Vec3,
     nf: Vec3,
     ns: Vec3,
+    wo: Vec3,
+    front: bool,
     inv_pi_a: f32,
+    ub1: f32,
+    ub2: f32,
     u_roulette: f32,
-    /// The BSDF's sample (`BsdfSample`, its fields: naga mis-sizes nested structs of `Vec3`s),
-    /// whether the material picks a lobe and the uniform that picks it.
-    bs_wi: Vec3,
-    bs_weight: Vec3,
-    bs_pdf: f32,
-    picks: bool,
-    u_pick: f32,
     /// The material's index, and whether the vertex reads a copy of it instead (`store`).
     material: u32,
     copied: bool,
@@ -287,13 +282,12 @@ impl Vertex {
         error: Vec3::ZERO,
         nf: Vec3::Z,
         ns: Vec3::Z,
+        wo: Vec3::Z,
+        front: true,
         inv_pi_a: 0.0,
+        ub1: 0.0,
+        ub2: 0.0,
         u_roulette: 0.0,
-        bs_wi: Vec3::ZERO,
-        bs_weight: Vec3::ZERO,
-        bs_pdf: 0.0,
-        picks: false,
-        u_pick: 0.0,
         material: 0,
         copied: false,
     };
@@ -432,8 +426,7 @@ fn shade_vertex<R: Recorder>(
     // here, not where their values are needed. The order of the sets is unchanged: the light
     // set (when there are lights), then the BSDF set; the last vertex draws none.
     let (u_select, u_light) = if lights & !last { rng.next_2d() } else { (0.0, 0.0) };
-    let [ub1, ub2, u_roulette] = if last { [0.0; 3] } else { rng.next_3d() };
-    vx.u_roulette = u_roulette;
+    [vx.ub1, vx.ub2, vx.u_roulette] = if last { [0.0; 3] } else { rng.next_3d() };
     let tri = &scene.triangles[hit.triangle as usize];
     let info = scene.info[hit.triangle as usize];
     let ng = geometric_normal(tri);
@@ -504,47 +497,33 @@ fn shade_vertex<R: Recorder>(
     // connection strategy's MIS weight.
     let inv_pi_a = if path.bidir & (path.bounce > 0) { inv_pi_area(path.prev_cos, n, dir, hit.t) } else { 0.0 };
 
-    *vx = Vertex { pos, spawn, error: surface.error, nf, ns, inv_pi_a, ..*vx };
+    *vx = Vertex { pos, spawn, error: surface.error, nf, ns, wo, front, inv_pi_a, ..*vx };
     // Next-event estimation's light sample and the connection each cast a shadow ray: both are
     // prepared and traced by the path loop's query (`shadow`), light sample first.
     *nee = NO_LIGHT_SAMPLE;
     // A smooth mirror reflects no sampled light: its reflection of an emitter counts in full
     // when the BSDF ray hits it (`DELTA_PDF` takes the whole MIS weight).
-    let toward = lights & !is_delta(v, mat);
-    let (mut d, mut index, mut kind, mut three, mut q2) = (LightDirection::NONE, 0, 0, false, 0.0);
-    if toward {
+    if lights & !is_delta(v, mat) {
         // The set's best-spread pair picks the light and the point on it: the picking dimension,
         // rescaled within the picked light's interval, is the point's first coordinate, so the
         // points stay stratified over a light made of several triangles (a quad lamp). With one
         // light the pick is light 0 and the rescaling the identity (its interval is [0, 1]).
         let many = v.has(FEATURE_MANY_EMITTERS);
-        let u1;
-        (index, u1) = pick_light(scene.lights, scene.light_count, many, u_select);
+        let (index, u1) = pick_light(scene.lights, scene.light_count, many, u_select);
         let light = scene.lights[index as usize];
         let other = (v.has(FEATURE_ENVIRONMENT_MAP) | v.has(FEATURE_PUNCTUAL)) & (light.triangle >= LIGHT_NOT_TRIANGLE);
-        // Where the sample lies and what arrives from there, by the light's kind; the BSDF is
-        // evaluated toward it below, and the sample weighed by one function of both kinds
-        // (`light_sample_toward`: a shader holds one copy of each).
-        d = if other {
+        // Where the sample lies and what arrives from there, by the light's kind; then one
+        // evaluation of the BSDF toward it (`light_sample_toward`: a shader holds one copy).
+        let d = if other {
             other_light_direction(scene, v, light.triangle, light.pmf, pos, u1, u_light)
         } else {
             triangle_light_direction(scene, v, &light, pos, u1, u_light)
         };
-        kind = light.triangle;
         // With connections a triangle's sample is one of three strategies (`connection`).
-        three = path.bidir & !other;
-        q2 = if three { d.pa * dot(nf, d.wi).abs() * inv_pi_a * connection_weight(p) } else { 0.0 };
-    }
-    // The BSDF toward the light sample and its own sample for the path's next ray, from one
-    // evaluation (`material::eval_and_sample`); the sample is taken in `leave_vertex`, after the
-    // shadow rays. The lobe pick's uniform is keyed by the BSDF set, the last set drawn here.
-    vx.picks = picks_lobe(v, mat);
-    vx.u_pick = if vx.picks { rng.independent_after() } else { 0.0 };
-    let (f, bs) = eval_and_sample(v, mat, scene.textures, ns, wo, front, (d.wi, toward), ub1, ub2, vx.u_pick);
-    (vx.bs_wi, vx.bs_weight, vx.bs_pdf) = (bs.wi, bs.weight, bs.pdf);
-    if toward {
+        let three = path.bidir & !other;
+        let q2 = if three { d.pa * dot(nf, d.wi).abs() * inv_pi_a * connection_weight(p) } else { 0.0 };
         let at = Shading { pos, spawn, error: surface.error, nf, ns, wo, front };
-        *nee = light_sample_toward(v, path.beta, &d, index, kind, &at, three, q2, f);
+        *nee = light_sample_toward(scene, v, path.beta, mat, &d, index, light.triangle, &at, three, q2);
     }
     true
 }
@@ -579,16 +558,26 @@ fn connect_vertex(
 /// The BSDF sample that continues the path from vertex `vx` (of material `mat`), and Russian
 /// roulette. Returns whether the path goes on.
 #[inline(always)]
-fn leave_vertex<R: Recorder>(v: Variant, path: &mut Path, mat: &Material, vx: &Vertex, rec: &mut R) -> bool {
-    let (ns, nf) = (vx.ns, vx.nf);
-    // The BSDF's sample, taken with its evaluation toward the light sample (`shade_vertex`).
-    let bs = BsdfSample { wi: vx.bs_wi, weight: vx.bs_weight, pdf: vx.bs_pdf };
+fn leave_vertex<R: Recorder>(
+    v: Variant,
+    path: &mut Path,
+    rng: &mut Sampler,
+    mat: &Material,
+    vx: &Vertex,
+    scene: &SceneView,
+    rec: &mut R,
+) -> bool {
+    let (ns, nf, wo, front) = (vx.ns, vx.nf, vx.wo, vx.front);
+    // The lobe pick's uniform, drawn only for a material that has a choice.
+    let picks = picks_lobe(v, mat);
+    let u_pick = if picks { rng.independent_after() } else { 0.0 };
+    let bs = sample_bsdf(v, mat, scene.textures, ns, wo, front, vx.ub1, vx.ub2, u_pick);
     let mut event = BsdfEvent {
         wi: bs.wi,
         pdf: bs.pdf,
         weight: bs.weight,
-        picks_lobe: vx.picks,
-        u_pick: vx.u_pick,
+        picks_lobe: picks,
+        u_pick,
         valid: false,
         throughput: path.beta,
     };

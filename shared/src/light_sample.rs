@@ -9,7 +9,6 @@ use crate::environment;
 use crate::features::{Variant, FEATURE_ENVIRONMENT_MAP, FEATURE_PUNCTUAL};
 use crate::glam::Vec3;
 use crate::layout::{LIGHT_ENVIRONMENT_BIT, LIGHT_OFFSET_MASK};
-#[cfg(not(target_arch = "spirv"))]
 use crate::material::eval;
 use crate::numerics::offset_ray_origin;
 use crate::punctual;
@@ -45,22 +44,6 @@ pub(crate) struct LightDirection {
     tell_pdf: bool,
 }
 
-impl LightDirection {
-    /// No light sample (a vertex that samples no light still evaluates its BSDF's sample).
-    pub(crate) const NONE: LightDirection = LightDirection {
-        wi: Vec3::Z,
-        incident: Vec3::ZERO,
-        light_pdf: 0.0,
-        target: Vec3::ZERO,
-        point: Vec3::ZERO,
-        pa: 0.0,
-        infinite: false,
-        delta: false,
-        ok: false,
-        tell_pdf: false,
-    };
-}
-
 /// The shading point a light sample is taken at: position, the spawn point on the side of the
 /// flat normal `nf`, the position's rounding error, the shading normal, the direction toward
 /// the ray's origin and the side hit.
@@ -71,11 +54,7 @@ pub(crate) struct Shading {
     pub error: Vec3,
     pub nf: Vec3,
     pub ns: Vec3,
-    /// Read where the BSDF is evaluated toward the sample here (`other_light_sample`, the CPU's
-    /// lane integrator); the path loop evaluates it with the BSDF's own sample.
-    #[cfg_attr(target_arch = "spirv", allow(dead_code))]
     pub wo: Vec3,
-    #[cfg_attr(target_arch = "spirv", allow(dead_code))]
     pub front: bool,
 }
 
@@ -159,23 +138,25 @@ pub(crate) fn other_light_direction(
 }
 
 /// Next-event estimation's sample `d` of light `index` (`kind`, its triangle or table entry)
-/// at shading point `at`, given the BSDF's value and pdf toward it (`material::eval`): the shadow
-/// ray (not yet traced) and the contribution for a path of throughput `beta`, MIS-weighted against the BSDF, or with `three`
+/// at shading point `at`: the BSDF evaluated toward it, the shadow ray (not yet traced) and the
+/// contribution for a path of throughput `beta`, MIS-weighted against the BSDF, or with `three`
 /// against the BSDF and the connection (whose density is `q2`); a delta takes its whole weight.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn light_sample_toward(
+    scene: &SceneView,
     v: Variant,
     beta: Vec3,
+    mat: &crate::layout::Material,
     d: &LightDirection,
     index: u32,
     kind: u32,
     at: &Shading,
     three: bool,
     q2: f32,
-    (f, pdf_bsdf): (Vec3, f32),
 ) -> LightSample {
     let wi = d.wi;
+    let (f, pdf_bsdf) = eval(v, mat, scene.textures, at.ns, at.wo, wi, at.front);
     let mut s = LightSample {
         event: LightEvent {
             status: LIGHT_INVALID,
@@ -232,6 +213,5 @@ pub(crate) fn other_light_sample(
     u2: f32,
 ) -> LightSample {
     let d = other_light_direction(scene, v, kind, pmf, at.pos, u1, u2);
-    let f = eval(v, mat, scene.textures, at.ns, at.wo, d.wi, at.front);
-    light_sample_toward(v, beta, &d, index, kind, at, false, 0.0, f)
+    light_sample_toward(scene, v, beta, mat, &d, index, kind, at, false, 0.0)
 }

@@ -79,12 +79,7 @@ fn is(v: Variant, m: &Material, kind: u32, bit: u32) -> bool {
 pub fn eval(v: Variant, m: &Material, words: &[u32], n: Vec3, wo: Vec3, wi: Vec3, front: bool) -> (Vec3, f32) {
     // The kinds work in the shading frame; it is built once here, not once per kind in a shader.
     let f = Frame::new(n);
-    eval_in_frame(v, m, words, f.to_local(wo), f.to_local(wi), front)
-}
-
-/// `eval` for directions `o` and `i` local to the shading frame.
-#[inline(always)]
-fn eval_in_frame(v: Variant, m: &Material, words: &[u32], o: Vec3, i: Vec3, front: bool) -> (Vec3, f32) {
+    let (o, i) = (f.to_local(wo), f.to_local(wi));
     if is(v, m, MATERIAL_DIFFUSE, FEATURE_DIFFUSE) {
         return diffuse::eval(m, i);
     }
@@ -121,94 +116,14 @@ pub fn sample(
     u2: f32,
     u3: f32,
 ) -> BsdfSample {
-    // One shading frame: the kinds sample a local direction, turned to the world once.
-    let f = Frame::new(n);
-    let o = f.to_local(wo);
-    let s = sample_in_frame(v, m, words, o, front, u1, u2, u3);
-    let s = if s.pdf == WEIGH { weighed(eval_in_frame(v, m, words, o, s.wi, front), s.wi) } else { s };
-    to_world(&f, s)
-}
-
-/// The BSDF at one vertex, evaluated toward next-event estimation's light sample `wi` (where
-/// `toward`, else zero) and sampled from `u1`, `u2`, `u3` as by `sample`: what `eval` and then
-/// `sample` return, bit for bit. The kinds that weigh their sample by the whole model's value
-/// (`WEIGH`) take that value from the same evaluation as the light sample, in a loop of two, so
-/// a shader inlines the evaluation of every kind once for both.
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-pub fn eval_and_sample(
-    v: Variant,
-    m: &Material,
-    words: &[u32],
-    n: Vec3,
-    wo: Vec3,
-    front: bool,
-    (wi, toward): (Vec3, bool),
-    u1: f32,
-    u2: f32,
-    u3: f32,
-) -> ((Vec3, f32), BsdfSample) {
-    let f = Frame::new(n);
-    let o = f.to_local(wo);
-    let mut s = sample_in_frame(v, m, words, o, front, u1, u2, u3);
-    let mut light = (Vec3::ZERO, 0.0);
-    let mut k = 0;
-    while k < 2 {
-        let first = k == 0;
-        if (first & toward) | (!first & (s.pdf == WEIGH)) {
-            let i = if first { f.to_local(wi) } else { s.wi };
-            let value = eval_in_frame(v, m, words, o, i, front);
-            if first {
-                light = value;
-            } else {
-                s = weighed(value, i);
-            }
-        }
-        k += 1;
-    }
-    (light, to_world(&f, s))
-}
-
-/// A kind's sample's pdf where the direction `wi` (local) is to be weighed by the whole model's
-/// value and pdf there (`weighed`): the principled model and the rough plastic mix lobes.
-pub(crate) const WEIGH: f32 = -1.0;
-
-/// The sample of local direction `i` given the model's value and pdf there: f·|cos|/pdf.
-#[inline(always)]
-pub(crate) fn weighed((value, pdf): (Vec3, f32), i: Vec3) -> BsdfSample {
-    if pdf <= 0.0 {
-        return BsdfSample::NONE;
-    }
-    BsdfSample { wi: i, weight: value * (i.z.abs() / pdf), pdf }
-}
-
-/// Sample `s` with its local direction turned to the world by frame `f`. A sampled direction is a
-/// unit vector; `NONE` keeps its zero direction exactly.
-#[inline(always)]
-fn to_world(f: &Frame, s: BsdfSample) -> BsdfSample {
-    let none = (s.wi.x == 0.0) & (s.wi.y == 0.0) & (s.wi.z == 0.0);
-    BsdfSample { wi: if none { Vec3::ZERO } else { f.to_world(s.wi) }, ..s }
-}
-
-/// `sample` for `o` local to the shading frame, with the local direction; `WEIGH` for its pdf
-/// where the caller weighs the direction.
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn sample_in_frame(
-    v: Variant,
-    m: &Material,
-    words: &[u32],
-    o: Vec3,
-    front: bool,
-    u1: f32,
-    u2: f32,
-    u3: f32,
-) -> BsdfSample {
     // Every kind draws its direction (a cosine-weighted one or a visible microfacet normal) from
     // the same point of the unit disk: mapped once here, a shader inlines the map once, not once
     // per kind and lobe.
     let disk = concentric_disk(u1, u2);
-    if is(v, m, MATERIAL_DIFFUSE, FEATURE_DIFFUSE) {
+    // Likewise one shading frame: the kinds sample a local direction, turned to the world once.
+    let f = Frame::new(n);
+    let o = f.to_local(wo);
+    let s = if is(v, m, MATERIAL_DIFFUSE, FEATURE_DIFFUSE) {
         diffuse::sample(m, disk)
     } else if is(v, m, MATERIAL_CONDUCTOR, FEATURE_CONDUCTOR) {
         conductor::sample(m, o, disk)
@@ -220,7 +135,10 @@ fn sample_in_frame(
         principled::sample(m, o, front, disk, u3)
     } else {
         BsdfSample::NONE
-    }
+    };
+    // A sampled direction is a unit vector; `NONE` keeps its zero direction exactly.
+    let none = (s.wi.x == 0.0) & (s.wi.y == 0.0) & (s.wi.z == 0.0);
+    BsdfSample { wi: if none { Vec3::ZERO } else { f.to_world(s.wi) }, ..s }
 }
 
 /// Whether every lobe of `m` is a delta (a smooth mirror): light sampling cannot hit it.

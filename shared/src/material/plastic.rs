@@ -15,7 +15,7 @@
 //! are picked with the weight 1 − t(cos θ_o) in place of F.
 use super::dielectric::fresnel_dielectric;
 use super::microfacet::{ggx_d, ggx_g1, ggx_sample_visible_at};
-use super::{BsdfSample, DELTA_PDF, WEIGH};
+use super::{BsdfSample, DELTA_PDF};
 use crate::glam::Vec3;
 use crate::layout::Material;
 use crate::sampling::{cosine_hemisphere_at, INV_PI};
@@ -118,7 +118,7 @@ fn eval_rough(m: &Material, words: &[u32], o: Vec3, i: Vec3) -> (Vec3, f32) {
 }
 
 /// The rough coating's sample: a GGX visible normal's mirror direction or the base's cosine
-/// lobe, picked with `u3`, to be weighed by the mixture's f·cos/pdf (`WEIGH`).
+/// lobe, picked with `u3`; the weight is f·cos/pdf of the mixture.
 #[inline]
 fn sample_rough(m: &Material, words: &[u32], o: Vec3, disk: (f32, f32), u3: f32) -> BsdfSample {
     let alpha = m.params.x;
@@ -133,9 +133,11 @@ fn sample_rough(m: &Material, words: &[u32], o: Vec3, disk: (f32, f32), u3: f32)
     if i.z <= 0.0 {
         return BsdfSample::NONE;
     }
-    // Weighed by the mixture's value and pdf (`material::weighed`, by `eval`, whose rough case
-    // is `eval_rough` for these o and i).
-    BsdfSample { wi: i, weight: Vec3::ZERO, pdf: WEIGH }
+    let (value, pdf) = eval_rough(m, words, o, i);
+    if pdf <= 0.0 {
+        return BsdfSample::NONE;
+    }
+    BsdfSample { wi: i, weight: value * (i.z / pdf), pdf }
 }
 
 /// `words`: the texture buffer, which holds a rough coating's table.

@@ -25,7 +25,7 @@
 //! `eta.y` its α (0: no coat); `eta.w` a normal map's scale.
 use super::dielectric::{fresnel_dielectric, refract, relative_eta, rough_transmission};
 use super::microfacet::{ggx_d, ggx_g1, ggx_sample_visible_at, ggx_visible_pdf};
-use super::{BsdfSample, WEIGH};
+use super::BsdfSample;
 use crate::glam::Vec3;
 use crate::layout::Material;
 use crate::sampling::{cosine_hemisphere_at, INV_PI};
@@ -169,9 +169,8 @@ pub fn eval(m: &Material, o: Vec3, i: Vec3, front: bool) -> (Vec3, f32) {
     eval_local(m, o, i, eta, c, ca, lobes(m, o, eta))
 }
 
-/// Picks a lobe with `u3` and draws a direction from it from the disk point `disk`, to be weighed
-/// by the whole model (`WEIGH`): f·|cos| / (the mixture's pdf). Directions are local
-/// (`material::sample`).
+/// Picks a lobe with `u3`, draws a direction from it from the disk point `disk`, and weighs it
+/// by the whole model: f·|cos| / (the mixture's pdf). Directions are local (`material::sample`).
 #[inline]
 pub fn sample(m: &Material, o: Vec3, front: bool, disk: (f32, f32), u3: f32) -> BsdfSample {
     let eta = relative_eta(m.params.y, front);
@@ -225,6 +224,14 @@ pub fn sample(m: &Material, o: Vec3, front: bool, disk: (f32, f32), u3: f32) -> 
     if i.z == 0.0 {
         return BsdfSample::NONE;
     }
-    // Weighed by the whole model, coat included (`material::weighed`, by `eval`).
-    BsdfSample { wi: i, weight: Vec3::ZERO, pdf: WEIGH }
+    weighed(eval_local(m, o, i, eta, c, ca, base_lobes), i)
+}
+
+/// The sample of local direction `i` given the whole model's value and pdf there.
+#[inline]
+fn weighed((value, pdf): (Vec3, f32), i: Vec3) -> BsdfSample {
+    if pdf <= 0.0 {
+        return BsdfSample::NONE;
+    }
+    BsdfSample { wi: i, weight: value * (i.z.abs() / pdf), pdf }
 }
